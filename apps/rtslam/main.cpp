@@ -1,0 +1,37 @@
+// rtslam: the command-line entry point. Thin: parses, wires, reports; the work lives in the libraries.
+#include <exception>
+#include <iostream>
+
+#include "commands.hpp"
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"rtslam: real-time EKF-SLAM for cameras and IMUs (RT-SLAM)"};
+  app.require_subcommand(1);
+  std::string log_level = "info";
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
+  app.parse_complete_callback([&log_level] { rtslam::set_log_level(log_level); });
+
+  rtslam::cli::register_run(app);
+  rtslam::cli::register_simulate(app);
+  rtslam::cli::register_eval(app);
+  rtslam::cli::register_batch(app);
+  rtslam::cli::register_report(app);
+  rtslam::cli::register_bench(app);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const rtslam::cli::CommandExit& e) {
+    return e.code;
+  } catch (const rtslam::Error& e) {
+    std::cerr << "rtslam: error: " << e.what() << '\n';
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "rtslam: unexpected error: " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}

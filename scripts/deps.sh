@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Installs the Debian packages rtslam needs to build, test and report (idempotent; run as root).
+set -euo pipefail
+packages=(
+  cmake g++ ninja-build pkg-config
+  libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "deps: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The test command: installs dependencies, builds with warnings as errors, runs the suite (all but the `slow`
+# label), then builds and runs it again under AddressSanitizer + UndefinedBehaviorSanitizer.
+# Long acceptance runs: `ctest --test-dir build -L slow` (see docs/testing.md).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/deps.sh
+jobs=$(nproc)
+
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DRTSLAM_WERROR=ON
+cmake --build build -j "$jobs"
+ctest --test-dir build -LE slow --output-on-failure -j "$jobs"
+
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRTSLAM_WERROR=ON -DRTSLAM_SANITIZE=ON \
+  -DRTSLAM_BUILD_BENCH=OFF
+cmake --build build-asan -j "$jobs"
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-asan -LE "slow|no-asan" --output-on-failure -j "$jobs"

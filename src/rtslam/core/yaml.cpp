@@ -1,0 +1,76 @@
+#include "rtslam/core/yaml.hpp"
+
+#include <filesystem>
+
+namespace rtslam {
+
+YAML::Node load_yaml_file(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw IoError(fmt::format("{}: file not found", path));
+  try {
+    return YAML::LoadFile(path);
+  } catch (const YAML::ParserException& e) {
+    throw ConfigError(fmt::format("{}: malformed YAML at line {}: {}", path, e.mark.line + 1, e.msg));
+  } catch (const YAML::Exception& e) {
+    throw IoError(fmt::format("{}: cannot read YAML: {}", path, e.msg));
+  }
+}
+
+YamlMap::YamlMap(YAML::Node node, std::string where) : node_(std::move(node)), where_(std::move(where)) {
+  if (node_ && !node_.IsNull() && !node_.IsMap()) {
+    throw ConfigError(fmt::format("{}: expected a mapping", where_));
+  }
+}
+
+std::string YamlMap::path_of(const std::string& key) const { return key; }
+
+bool YamlMap::has(const std::string& key) const { return node_ && node_.IsMap() && node_[key]; }
+
+YamlMap YamlMap::child(const std::string& key) {
+  if (!has(key)) return YamlMap(YAML::Node(YAML::NodeType::Map), where_ + "/" + key);
+  used_.insert(key);
+  const YAML::Node sub = node_[key];
+  if (!sub.IsMap()) throw ConfigError(fmt::format("{}: '{}' must be a mapping", where_, key));
+  return YamlMap(sub, where_ + "/" + key);
+}
+
+void YamlMap::get_matrix(const std::string& key, Eigen::Ref<Eigen::MatrixXd> value) {
+  if (!has(key)) return;
+  used_.insert(key);
+  const YAML::Node n = node_[key];
+  std::vector<double> flat;
+  try {
+    // Accept a flat list, a list of rows, or an OpenCV-style {rows, cols, data} mapping.
+    const YAML::Node data = n.IsMap() && n["data"] ? n["data"] : n;
+    if (!data.IsSequence()) throw ConfigError(fmt::format("{}: '{}' must be a list of numbers", where_, key));
+    for (const auto& item : data) {
+      if (item.IsSequence()) {
+        for (const auto& x : item) flat.push_back(x.as<double>());
+      } else {
+        flat.push_back(item.as<double>());
+      }
+    }
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(fmt::format("{}: cannot read '{}' as numbers ({})", where_, key, e.msg));
+  }
+  if (static_cast<Eigen::Index>(flat.size()) != value.size()) {
+    throw ConfigError(fmt::format("{}: '{}' has {} numbers, expected {} ({}x{})", where_, key, flat.size(),
+                                  value.size(), value.rows(), value.cols()));
+  }
+  for (Eigen::Index r = 0; r < value.rows(); ++r)
+    for (Eigen::Index c = 0; c < value.cols(); ++c) value(r, c) = flat[static_cast<size_t>(r * value.cols() + c)];
+}
+
+void YamlMap::finish() const {
+  if (!node_ || !node_.IsMap()) return;
+  for (const auto& kv : node_) {
+    const auto key = kv.first.as<std::string>();
+    if (!used_.count(key)) throw ConfigError(fmt::format("{}: unknown key '{}'", where_, key));
+  }
+}
+
+void require_bound(bool ok, const std::string& where, const std::string& key, double value,
+                   const std::string& bound) {
+  if (!ok) throw ConfigError(fmt::format("{}: {} = {} must be {}", where, key, value, bound));
+}
+
+}  // namespace rtslam

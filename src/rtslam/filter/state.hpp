@@ -1,0 +1,160 @@
+#pragma once
+// The EKF engine with sparse indirect indexing (RT-SLAM's "Map" estimation engine).
+//
+// A State holds the mean vector (ambient coordinates) and the symmetric covariance (tangent coordinates) of a
+// set of blocks: robots, sensors, landmarks. Each block owns one contiguous range of the mean and one contiguous
+// range of covariance rows, handed out by first-fit allocators; blocks can be added and removed at run time, freed
+// ranges are reused, and nothing else moves. Operations touch only what they involve:
+//  - predict(b): the rows/columns of block b (P_bb and the cross-covariances P_bo with every active block o);
+//  - correct(blocks, H): H is COMPRESSED (columns for the involved blocks only, in the order given); P Hᵀ costs
+//    O(n·k), the covariance downdate O(n²·m) over the active rows only (one triangle, mirrored: exactly symmetric).
+// Covariance rows that belong to no block are never read or written. Storage is allocated once at construction:
+// predict/correct allocate nothing, however many blocks come and go.
+//
+// Correction (../shared/MATH.md, "Correction"): S = H P Hᵀ + R = L Lᵀ, W = P Hᵀ L⁻ᵀ, x ← x ⊕ W L⁻¹ y,
+// P ← P − W Wᵀ. An always-on check refuses an update that would make any variance non-positive. The orientation
+// reset Jacobian I − ½[δθ]× is neglected (it is identity to first order); stated here as MATH.md asks.
+//
+// Not thread-safe: workspaces are shared by the const queries too.
+#include <limits>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include "rtslam/filter/block_layout.hpp"
+#include "rtslam/filter/range_allocator.hpp"
+
+namespace rtslam::filter {
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+/// Handle of a block inside one State (stable while the block lives; reused after removal).
+using BlockId = int;
+constexpr BlockId kNoBlock = -1;
+
+struct StateOptions {
+  int tangent_capacity = 600;      // covariance rows (RT-SLAM's MAP_SIZE counts these, "state entries")
+  int ambient_capacity = 0;        // mean entries; 0 = tangent_capacity * 4 / 3 + 16
+  int max_measurement_rows = 64;   // rows of one batched correction
+  int max_block_tangent = 32;      // largest block (robot + calibration states)
+  void validate() const;
+};
+
+struct BlockInfo {
+  BlockLayout layout;
+  int ambient_offset = 0;
+  int tangent_offset = 0;
+  bool used = false;
+  int ambient_size() const { return layout.ambient_size(); }
+  int tangent_size() const { return layout.tangent_size(); }
+};
+
+struct CorrectionResult {
+  enum class Status { Ok, Gated, NotPositiveDefinite, NonPositiveVariance, TooManyRows };
+  Status status = Status::Ok;
+  double mahalanobis2 = 0.0;  // yᵀ S⁻¹ y
+  bool ok() const { return status == Status::Ok; }
+};
+
+const char* to_string(CorrectionResult::Status s);
+
+class State {
+ public:
+  explicit State(StateOptions options = {});
+
+  // --- blocks ---------------------------------------------------------------------------------------------
+  /// Adds a block with an independent prior (zero cross-covariance). nullopt if the state is full.
+  std::optional<BlockId> add_block(const BlockLayout& layout, const Eigen::Ref<const VectorXd>& mean,
+                                   const Eigen::Ref<const MatrixXd>& cov);
+  /// Adds a block that is a function of existing blocks plus independent noise: x_new = g(x_parents, n), with
+  /// J_new_parents (t × Σ parents' tangent) and Q = J_new_n N J_new_nᵀ (t × t). Then
+  /// P_nn = J P_pp Jᵀ + Q and P_no = J P_po for every active block o (undelayed landmark initialization,
+  /// reparametrization). nullopt if the state is full.
+  std::optional<BlockId> add_block(const BlockLayout& layout, const Eigen::Ref<const VectorXd>& mean,
+                                   std::span<const BlockId> parents, const Eigen::Ref<const MatrixXd>& J_new_parents,
+                                   const Eigen::Ref<const MatrixXd>& Q);
+  /// Frees the block's ranges for reuse; every other block is untouched.
+  void remove_block(BlockId id);
+
+  bool valid(BlockId id) const { return id >= 0 && id < static_cast<int>(blocks_.size()) && blocks_[id].used; }
+  const BlockInfo& block(BlockId id) const { return blocks_[static_cast<size_t>(id)]; }
+  int block_count() const { return used_blocks_; }
+  /// Tangent rows in use / capacity, and the largest contiguous free range.
+  int tangent_used() const { return tangent_alloc_.capacity() - tangent_alloc_.free_total(); }
+  int tangent_capacity() const { return tangent_alloc_.capacity(); }
+  bool can_allocate(const BlockLayout& layout) const;
+
+  // --- access ---------------------------------------------------------------------------------------------
+  Eigen::VectorBlock<VectorXd> mean(BlockId id);
+  Eigen::VectorBlock<const VectorXd> mean(BlockId id) const;
+  Eigen::Block<MatrixXd> cov(BlockId a, BlockId b);
+  Eigen::Block<const MatrixXd> cov(BlockId a, BlockId b) const;
+  Eigen::Block<const MatrixXd> cov(BlockId a) const { return cov(a, a); }
+  /// The whole mean vector (ambient capacity); unused entries are meaningless.
+  const VectorXd& mean_vector() const { return x_; }
+  VectorXd& mean_vector() { return x_; }
+  /// The whole covariance (tangent capacity); unused rows are meaningless.
+  const MatrixXd& covariance() const { return P_; }
+  /// Active covariance rows as sorted, merged [begin, begin+len) runs.
+  struct Run {
+    int begin;
+    int length;
+  };
+  std::span<const Run> active_runs() const { return runs_; }
+
+  // --- prediction -----------------------------------------------------------------------------------------
+  /// After the caller has written the predicted mean of block b: P_bb ← F P_bb Fᵀ + Q, P_bo ← F P_bo for every
+  /// other active block o. F and Q are (t × t), t the block's tangent size.
+  void predict(BlockId b, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q);
+
+  // --- correction -----------------------------------------------------------------------------------------
+  /// S = H P Hᵀ + R for a compressed H over `blocks` (m × Σ tangent). Writes S (m × m).
+  void innovation_covariance(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
+                             const Eigen::Ref<const MatrixXd>& R, Eigen::Ref<MatrixXd> S) const;
+  /// EKF correction with innovation y = z − h(x). If gate_mahalanobis2 is finite and yᵀS⁻¹y exceeds it, nothing
+  /// changes (status Gated). Refuses (changes nothing) when S is not positive definite or a variance would
+  /// become non-positive.
+  CorrectionResult correct(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
+                           const Eigen::Ref<const VectorXd>& y, const Eigen::Ref<const MatrixXd>& R,
+                           double gate_mahalanobis2 = std::numeric_limits<double>::infinity());
+  /// The mean correction dx = P Hᵀ S⁻¹ y alone (tangent capacity; zero on unused rows), without touching the
+  /// state: one-point RANSAC hypotheses.
+  CorrectionResult mean_correction(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
+                                   const Eigen::Ref<const VectorXd>& y, const Eigen::Ref<const MatrixXd>& R,
+                                   Eigen::Ref<VectorXd> dx) const;
+  /// out = src ⊕ dx over every active block (src/out: ambient capacity; dx: tangent capacity). out may be src.
+  void boxplus_all(const VectorXd& src, const Eigen::Ref<const VectorXd>& dx, VectorXd& out) const;
+
+ private:
+  int total_tangent(std::span<const BlockId> blocks) const;
+  /// PHt_(active rows, 0:m) = P(active, blocks) Hᵀ.
+  void compute_PHt(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H) const;
+  /// S_ = H PHt_(block rows) + R; returns false if the Cholesky factorization fails.
+  bool factor_S(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
+                const Eigen::Ref<const MatrixXd>& R, int m) const;
+  void rebuild_runs();
+
+  StateOptions options_;
+  VectorXd x_;
+  MatrixXd P_;
+  RangeAllocator ambient_alloc_;
+  RangeAllocator tangent_alloc_;
+  std::vector<BlockInfo> blocks_;
+  std::vector<BlockId> free_ids_;
+  std::vector<Run> runs_;
+  int used_blocks_ = 0;
+
+  // Workspaces, sized once.
+  mutable MatrixXd PHt_;   // tangent capacity × max rows  (later W = P Hᵀ L⁻ᵀ)
+  mutable MatrixXd S_;     // max rows × max rows (its lower triangle holds L after factorization)
+  mutable VectorXd z_;     // whitened innovation L⁻¹ y
+  mutable VectorXd dx_;    // tangent capacity
+  MatrixXd tmp_;           // max block tangent × tangent capacity (prediction)
+  MatrixXd tmp_small_;     // max block tangent × max block tangent
+};
+
+}  // namespace rtslam::filter

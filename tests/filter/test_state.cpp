@@ -1,0 +1,307 @@
+#include "rtslam/filter/state.hpp"
+
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "rtslam/core/random.hpp"
+#include "rtslam/math/rotation.hpp"
+
+namespace rtslam::filter {
+namespace {
+
+MatrixXd random_spd(int n, Rng& rng, double scale = 1.0) {
+  MatrixXd A(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) A(i, j) = randn(rng);
+  return scale * (A * A.transpose() / n + 0.1 * MatrixXd::Identity(n, n));
+}
+
+MatrixXd random_matrix(int r, int c, Rng& rng) {
+  MatrixXd A(r, c);
+  for (int i = 0; i < r; ++i)
+    for (int j = 0; j < c; ++j) A(i, j) = randn(rng);
+  return A;
+}
+
+// A state of Euclidean blocks with a full, correlated joint covariance; also returns the dense copy.
+struct DenseMirror {
+  std::vector<BlockId> ids;
+  std::vector<int> sizes;
+  VectorXd x;
+  MatrixXd P;
+  int offset_of(size_t k) const {
+    int o = 0;
+    for (size_t i = 0; i < k; ++i) o += sizes[i];
+    return o;
+  }
+};
+
+DenseMirror fill_linear_state(State& s, const std::vector<int>& sizes, Rng& rng) {
+  DenseMirror d;
+  d.sizes = sizes;
+  int n = 0;
+  for (int sz : sizes) n += sz;
+  d.x = VectorXd(n);
+  for (int i = 0; i < n; ++i) d.x[i] = randn(rng);
+  d.P = random_spd(n, rng);
+  int off = 0;
+  for (int sz : sizes) {
+    const auto id = s.add_block(BlockLayout::euclidean(sz), d.x.segment(off, sz), MatrixXd::Identity(sz, sz));
+    EXPECT_TRUE(id.has_value());
+    d.ids.push_back(*id);
+    off += sz;
+  }
+  for (size_t a = 0; a < sizes.size(); ++a)
+    for (size_t b = 0; b < sizes.size(); ++b)
+      s.cov(d.ids[a], d.ids[b]) = d.P.block(d.offset_of(a), d.offset_of(b), sizes[a], sizes[b]);
+  return d;
+}
+
+void expect_matches_dense(const State& s, const DenseMirror& d, double tol) {
+  for (size_t a = 0; a < d.ids.size(); ++a) {
+    EXPECT_LT((s.mean(d.ids[a]) - d.x.segment(d.offset_of(a), d.sizes[a])).norm(), tol) << "block " << a;
+    for (size_t b = 0; b < d.ids.size(); ++b) {
+      const MatrixXd ref = d.P.block(d.offset_of(a), d.offset_of(b), d.sizes[a], d.sizes[b]);
+      EXPECT_LT((s.cov(d.ids[a], d.ids[b]) - ref).norm(), tol) << "blocks " << a << "," << b;
+    }
+  }
+}
+
+TEST(State, MatchesClosedFormKalmanFilterOnLinearGaussianProblem) {
+  Rng rng(42);
+  State s;
+  DenseMirror d = fill_linear_state(s, {3, 2, 4, 1, 5}, rng);
+  const int n = static_cast<int>(d.x.size());
+  for (int step = 0; step < 5; ++step) {
+    // Predict block 2 (4-dim): x_b ← F x_b + u, P ← F P Fᵀ + Q on that block.
+    const MatrixXd F = MatrixXd::Identity(4, 4) + 0.3 * random_matrix(4, 4, rng);
+    const MatrixXd Q = random_spd(4, rng, 0.1);
+    const VectorXd u = random_matrix(4, 1, rng);
+    s.mean(d.ids[2]) = F * s.mean(d.ids[2]) + u;
+    s.predict(d.ids[2], F, Q);
+    MatrixXd Ff = MatrixXd::Identity(n, n);
+    const int o2 = d.offset_of(2);
+    Ff.block(o2, o2, 4, 4) = F;
+    MatrixXd Qf = MatrixXd::Zero(n, n);
+    Qf.block(o2, o2, 4, 4) = Q;
+    d.x.segment(o2, 4) = F * d.x.segment(o2, 4) + u;
+    d.P = Ff * d.P * Ff.transpose() + Qf;
+    expect_matches_dense(s, d, 1e-9);
+
+    // Correct with a 3-row measurement of blocks 0 and 4 (compressed H: 3 x (3 + 5)).
+    const std::vector<BlockId> involved = {d.ids[0], d.ids[4]};
+    const MatrixXd Hc = random_matrix(3, 8, rng);
+    const MatrixXd R = random_spd(3, rng, 0.05);
+    const VectorXd z = random_matrix(3, 1, rng);
+    MatrixXd Hf = MatrixXd::Zero(3, n);
+    Hf.block(0, d.offset_of(0), 3, 3) = Hc.leftCols(3);
+    Hf.block(0, d.offset_of(4), 3, 5) = Hc.rightCols(5);
+    const VectorXd y = z - Hf * d.x;
+    const auto res = s.correct(involved, Hc, y, R);
+    ASSERT_TRUE(res.ok()) << to_string(res.status);
+    const MatrixXd S = Hf * d.P * Hf.transpose() + R;
+    const MatrixXd K = d.P * Hf.transpose() * S.inverse();
+    EXPECT_NEAR(res.mahalanobis2, y.dot(S.ldlt().solve(y)), 1e-9);
+    d.x += K * y;
+    d.P = d.P - K * S * K.transpose();
+    expect_matches_dense(s, d, 1e-9);
+  }
+}
+
+TEST(State, CovarianceStaysExactlySymmetric) {
+  Rng rng(3);
+  State s;
+  DenseMirror d = fill_linear_state(s, {6, 6, 6}, rng);
+  const std::vector<BlockId> involved = {d.ids[1]};
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_TRUE(s.correct(involved, random_matrix(2, 6, rng), random_matrix(2, 1, rng), MatrixXd::Identity(2, 2)).ok());
+  }
+  const int n = 18;
+  const MatrixXd P = s.covariance().topLeftCorner(n, n);
+  EXPECT_EQ((P - P.transpose()).cwiseAbs().maxCoeff(), 0.0);
+}
+
+TEST(State, BatchedCorrectionEqualsSequentialOnLinearProblem) {
+  Rng rng(9);
+  State a;
+  State b;
+  Rng rng_b = rng;
+  DenseMirror da = fill_linear_state(a, {4, 3, 3}, rng);
+  DenseMirror db = fill_linear_state(b, {4, 3, 3}, rng_b);
+  const MatrixXd H1 = random_matrix(2, 7, rng);  // blocks 0,1
+  const MatrixXd H2 = random_matrix(2, 7, rng);  // blocks 0,2
+  const VectorXd z1 = random_matrix(2, 1, rng);
+  const VectorXd z2 = random_matrix(2, 1, rng);
+  const MatrixXd R = 0.1 * MatrixXd::Identity(2, 2);
+  const auto h = [](const State& s, const DenseMirror& d, const MatrixXd& H, int other) {
+    VectorXd x(7);
+    x << s.mean(d.ids[0]), s.mean(d.ids[static_cast<size_t>(other)]);
+    return VectorXd(H * x);
+  };
+  // Sequential on a.
+  ASSERT_TRUE(a.correct(std::vector<BlockId>{da.ids[0], da.ids[1]}, H1, z1 - h(a, da, H1, 1), R).ok());
+  ASSERT_TRUE(a.correct(std::vector<BlockId>{da.ids[0], da.ids[2]}, H2, z2 - h(a, da, H2, 2), R).ok());
+  // Batched on b: compressed over blocks {0,1,2}.
+  MatrixXd H = MatrixXd::Zero(4, 10);
+  H.block(0, 0, 2, 4) = H1.leftCols(4);
+  H.block(0, 4, 2, 3) = H1.rightCols(3);
+  H.block(2, 0, 2, 4) = H2.leftCols(4);
+  H.block(2, 7, 2, 3) = H2.rightCols(3);
+  VectorXd y(4);
+  y << z1 - h(b, db, H1, 1), z2 - h(b, db, H2, 2);
+  MatrixXd R4 = 0.1 * MatrixXd::Identity(4, 4);
+  ASSERT_TRUE(b.correct(std::vector<BlockId>{db.ids[0], db.ids[1], db.ids[2]}, H, y, R4).ok());
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_LT((a.mean(da.ids[i]) - b.mean(db.ids[i])).norm(), 1e-9);
+    for (size_t j = 0; j < 3; ++j) EXPECT_LT((a.cov(da.ids[i], da.ids[j]) - b.cov(db.ids[i], db.ids[j])).norm(), 1e-9);
+  }
+}
+
+TEST(State, AddAndRemoveKeepOtherBlocksBitIdentical) {
+  Rng rng(5);
+  State s(StateOptions{.tangent_capacity = 80});
+  DenseMirror d = fill_linear_state(s, {3, 7, 3, 7, 7, 3}, rng);
+  const VectorXd x0 = s.mean_vector();
+  const MatrixXd P0 = s.covariance();
+  // Remove block 1 (7 rows), add a block derived from blocks 0 and 3, then a 3-block into the freed space.
+  s.remove_block(d.ids[1]);
+  const MatrixXd J = random_matrix(7, 10, rng);
+  const std::vector<BlockId> parents = {d.ids[0], d.ids[3]};
+  const auto n1 = s.add_block(BlockLayout::euclidean(7), VectorXd::Ones(7), parents, J, MatrixXd::Identity(7, 7));
+  ASSERT_TRUE(n1.has_value());
+  const auto n2 = s.add_block(BlockLayout::euclidean(3), VectorXd::Ones(3), MatrixXd::Identity(3, 3));
+  ASSERT_TRUE(n2.has_value());
+  EXPECT_EQ(s.block(*n1).tangent_offset, 3) << "freed rows are reused first";
+  for (size_t a : {0u, 2u, 3u, 4u, 5u}) {
+    const BlockInfo& ba = s.block(d.ids[a]);
+    EXPECT_TRUE((s.mean(d.ids[a]).array() == x0.segment(ba.ambient_offset, ba.ambient_size()).array()).all());
+    for (size_t b : {0u, 2u, 3u, 4u, 5u}) {
+      const BlockInfo& bb = s.block(d.ids[b]);
+      const MatrixXd before = P0.block(ba.tangent_offset, bb.tangent_offset, ba.tangent_size(), bb.tangent_size());
+      EXPECT_TRUE((s.cov(d.ids[a], d.ids[b]).array() == before.array()).all()) << a << "," << b;
+    }
+  }
+  // The derived block's covariance follows P_nn = J P_pp Jᵀ + I and P_no = J P_po.
+  MatrixXd Ppp(10, 10);
+  Ppp << s.cov(d.ids[0], d.ids[0]), s.cov(d.ids[0], d.ids[3]), s.cov(d.ids[3], d.ids[0]), s.cov(d.ids[3], d.ids[3]);
+  EXPECT_LT((s.cov(*n1, *n1) - (J * Ppp * J.transpose() + MatrixXd::Identity(7, 7))).norm(), 1e-12);
+  MatrixXd Pp4(10, 7);
+  Pp4 << s.cov(d.ids[0], d.ids[4]), s.cov(d.ids[3], d.ids[4]);
+  EXPECT_LT((s.cov(*n1, d.ids[4]) - J * Pp4).norm(), 1e-12);
+  EXPECT_TRUE(s.cov(*n2, d.ids[4]).isZero(0.0));
+}
+
+TEST(State, CorrectionTouchingTwoOfFiftyBlocksChangesOnlyCorrelatedOnes) {
+  Rng rng(11);
+  State s;
+  // 50 blocks of 3; blocks 0..9 are mutually correlated, 10..49 are independent of them and of each other.
+  std::vector<BlockId> ids;
+  for (int i = 0; i < 50; ++i) {
+    ids.push_back(*s.add_block(BlockLayout::euclidean(3), random_matrix(3, 1, rng), random_spd(3, rng)));
+  }
+  const MatrixXd C = random_spd(30, rng);
+  for (int a = 0; a < 10; ++a)
+    for (int b = 0; b < 10; ++b) s.cov(ids[a], ids[b]) = C.block(3 * a, 3 * b, 3, 3);
+  const VectorXd x0 = s.mean_vector();
+  const MatrixXd P0 = s.covariance();
+  // Observe blocks 2 and 7.
+  const std::vector<BlockId> involved = {ids[2], ids[7]};
+  const MatrixXd H = random_matrix(2, 6, rng);
+  ASSERT_TRUE(s.correct(involved, H, random_matrix(2, 1, rng), 0.01 * MatrixXd::Identity(2, 2)).ok());
+  for (int a = 0; a < 50; ++a) {
+    const BlockInfo& ba = s.block(ids[a]);
+    const bool moved = !(s.mean(ids[a]).array() == x0.segment(ba.ambient_offset, 3).array()).all();
+    EXPECT_EQ(moved, a < 10) << "block " << a;
+    for (int b = 0; b < 50; ++b) {
+      const BlockInfo& bb = s.block(ids[b]);
+      const bool changed = !(s.cov(ids[a], ids[b]).array() ==
+                             P0.block(ba.tangent_offset, bb.tangent_offset, 3, 3).array()).all();
+      EXPECT_EQ(changed, a < 10 && b < 10) << a << "," << b;
+    }
+  }
+}
+
+TEST(State, GatedCorrectionChangesNothing) {
+  Rng rng(2);
+  State s;
+  DenseMirror d = fill_linear_state(s, {2, 2}, rng);
+  const VectorXd x0 = s.mean_vector();
+  const MatrixXd P0 = s.covariance();
+  const std::vector<BlockId> involved = {d.ids[0]};
+  const auto res = s.correct(involved, MatrixXd::Identity(2, 2), VectorXd::Constant(2, 100.0),
+                             0.01 * MatrixXd::Identity(2, 2), 9.0);
+  EXPECT_EQ(res.status, CorrectionResult::Status::Gated);
+  EXPECT_GT(res.mahalanobis2, 9.0);
+  EXPECT_TRUE((s.mean_vector().array() == x0.array()).all());
+  EXPECT_TRUE((s.covariance().array() == P0.array()).all());
+}
+
+TEST(State, RefusesUpdateThatWouldMakeAVarianceNonPositive) {
+  State s;
+  const BlockId a = *s.add_block(BlockLayout::euclidean(2), VectorXd::Zero(2), MatrixXd::Identity(2, 2));
+  // Corrupt the covariance into an indefinite matrix: the update would drive var(x1) below zero.
+  s.cov(a, a) << 1.0, 2.0, 2.0, 1.0;
+  const VectorXd x0 = s.mean_vector();
+  const MatrixXd P0 = s.covariance();
+  MatrixXd H(1, 2);
+  H << 1.0, 0.0;
+  const std::vector<BlockId> involved = {a};
+  const auto res = s.correct(involved, H, VectorXd::Ones(1), 0.01 * MatrixXd::Identity(1, 1));
+  EXPECT_EQ(res.status, CorrectionResult::Status::NonPositiveVariance);
+  EXPECT_TRUE((s.mean_vector().array() == x0.array()).all());
+  EXPECT_TRUE((s.covariance().array() == P0.array()).all());
+  // And a non-positive-definite innovation covariance is refused too.
+  const auto res2 = s.correct(involved, H, VectorXd::Ones(1), -5.0 * MatrixXd::Identity(1, 1));
+  EXPECT_EQ(res2.status, CorrectionResult::Status::NotPositiveDefinite);
+}
+
+TEST(State, MeanCorrectionEqualsTheMeanPartOfCorrect) {
+  Rng rng(8);
+  State s;
+  DenseMirror d = fill_linear_state(s, {3, 4, 2}, rng);
+  const std::vector<BlockId> involved = {d.ids[1]};
+  const MatrixXd H = random_matrix(2, 4, rng);
+  const VectorXd y = random_matrix(2, 1, rng);
+  const MatrixXd R = 0.2 * MatrixXd::Identity(2, 2);
+  VectorXd dx(s.tangent_capacity());
+  ASSERT_TRUE(s.mean_correction(involved, H, y, R, dx).ok());
+  VectorXd predicted;
+  s.boxplus_all(s.mean_vector(), dx, predicted);
+  ASSERT_TRUE(s.correct(involved, H, y, R).ok());
+  EXPECT_LT((predicted - s.mean_vector()).norm(), 1e-12);
+}
+
+TEST(State, QuaternionBlockIsCorrectedThroughItsRetraction) {
+  // A pose-like block [p(3) q]: observe the orientation directly (z = δθ measured around the mean); the mean
+  // must move by q ⊗ Exp(K y) and the orientation variance must shrink as in the scalar KF.
+  State s;
+  const BlockLayout layout = BlockLayout::euclidean(3).then_quaternion();
+  VectorXd mean(7);
+  mean << 1.0, 2.0, 3.0, math::quat_to_wxyz(math::exp_so3(Eigen::Vector3d(0.1, 0.2, 0.3)));
+  const BlockId b = *s.add_block(layout, mean, 0.04 * MatrixXd::Identity(6, 6));
+  MatrixXd H = MatrixXd::Zero(3, 6);
+  H.rightCols(3).setIdentity();
+  const Eigen::Vector3d y(0.02, -0.01, 0.03);
+  const std::vector<BlockId> involved = {b};
+  ASSERT_TRUE(s.correct(involved, H, y, 0.04 * MatrixXd::Identity(3, 3)).ok());
+  const Eigen::Vector3d expected_step = 0.5 * y;  // K = 0.04 / (0.04 + 0.04)
+  const auto q_expected = math::boxplus(math::quat_from_wxyz(mean.tail<4>()), expected_step);
+  EXPECT_LT((s.mean(b).tail<4>() - math::quat_to_wxyz(q_expected)).norm(), 1e-12);
+  EXPECT_TRUE((s.mean(b).head<3>().array() == mean.head<3>().array()).all());
+  EXPECT_NEAR(s.cov(b, b)(4, 4), 0.02, 1e-12);
+  EXPECT_NEAR(s.cov(b, b)(1, 1), 0.04, 1e-15);
+}
+
+TEST(State, FullStateRefusesNewBlocksAndRecoversAfterRemoval) {
+  State s(StateOptions{.tangent_capacity = 10});
+  const auto a = s.add_block(BlockLayout::euclidean(7), VectorXd::Zero(7), MatrixXd::Identity(7, 7));
+  ASSERT_TRUE(a.has_value());
+  EXPECT_FALSE(s.add_block(BlockLayout::euclidean(7), VectorXd::Zero(7), MatrixXd::Identity(7, 7)).has_value());
+  s.remove_block(*a);
+  EXPECT_TRUE(s.add_block(BlockLayout::euclidean(7), VectorXd::Zero(7), MatrixXd::Identity(7, 7)).has_value());
+  EXPECT_EQ(s.tangent_used(), 7);
+}
+
+}  // namespace
+}  // namespace rtslam::filter

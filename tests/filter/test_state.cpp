@@ -305,3 +305,82 @@ TEST(State, FullStateRefusesNewBlocksAndRecoversAfterRemoval) {
 
 }  // namespace
 }  // namespace rtslam::filter
+
+namespace rtslam::filter {
+namespace {
+
+TEST(State, ZeroVarianceGaugeRowsStayZeroAndDoNotBlockUpdates) {
+  State s;
+  // Block a: a gauge (zero covariance); block b: uncertain and observed.
+  const BlockId a = *s.add_block(BlockLayout::euclidean(3), Eigen::VectorXd::Zero(3), MatrixXd::Zero(3, 3));
+  const BlockId b = *s.add_block(BlockLayout::euclidean(2), Eigen::VectorXd::Zero(2), MatrixXd::Identity(2, 2));
+  MatrixXd H(2, 5);
+  H << 1, 0, 0, 1, 0, 0, 1, 0, 0, 1;
+  const std::vector<BlockId> involved = {a, b};
+  ASSERT_TRUE(s.correct(involved, H, Eigen::Vector2d(0.3, -0.2), 0.1 * MatrixXd::Identity(2, 2)).ok());
+  EXPECT_TRUE(s.cov(a, a).isZero(0.0));
+  EXPECT_TRUE(s.mean(a).isZero(0.0));
+  EXPECT_NEAR(s.cov(b, b)(0, 0), 0.1 / 1.1, 1e-12);
+}
+
+}  // namespace
+}  // namespace rtslam::filter
+
+namespace rtslam::filter {
+namespace {
+
+TEST(State, MatchesClosedFormAcrossSeveralActiveRuns) {
+  // Holes in the covariance (removed blocks) split the active rows into runs; the downdate over run pairs must
+  // still be the closed-form one.
+  Rng rng(21);
+  State s;
+  DenseMirror d = fill_linear_state(s, {3, 5, 2, 4, 3, 6}, rng);
+  s.remove_block(d.ids[1]);
+  s.remove_block(d.ids[4]);
+  ASSERT_EQ(s.active_runs().size(), 3u);
+  // Dense mirror of the remaining blocks 0, 2, 3, 5.
+  const std::vector<size_t> keep = {0, 2, 3, 5};
+  DenseMirror r;
+  int n = 0;
+  for (size_t k : keep) {
+    r.ids.push_back(d.ids[k]);
+    r.sizes.push_back(d.sizes[k]);
+    n += d.sizes[k];
+  }
+  r.x = VectorXd(n);
+  r.P = MatrixXd(n, n);
+  for (size_t a = 0; a < keep.size(); ++a) {
+    r.x.segment(r.offset_of(a), r.sizes[a]) = s.mean(r.ids[a]);
+    for (size_t b = 0; b < keep.size(); ++b)
+      r.P.block(r.offset_of(a), r.offset_of(b), r.sizes[a], r.sizes[b]) = s.cov(r.ids[a], r.ids[b]);
+  }
+  for (int step = 0; step < 3; ++step) {
+    const std::vector<BlockId> involved = {r.ids[1], r.ids[3]};
+    const MatrixXd Hc = random_matrix(4, 8, rng);
+    const MatrixXd R = random_spd(4, rng, 0.05);
+    const VectorXd y = random_matrix(4, 1, rng);
+    MatrixXd Hf = MatrixXd::Zero(4, n);
+    Hf.block(0, r.offset_of(1), 4, 2) = Hc.leftCols(2);
+    Hf.block(0, r.offset_of(3), 4, 6) = Hc.rightCols(6);
+    ASSERT_TRUE(s.correct(involved, Hc, y, R).ok());
+    const MatrixXd S = Hf * r.P * Hf.transpose() + R;
+    const MatrixXd K = r.P * Hf.transpose() * S.inverse();
+    r.x += K * y;
+    r.P = r.P - K * S * K.transpose();
+    expect_matches_dense(s, r, 1e-9);
+    // Prediction of a block in the middle run.
+    const MatrixXd F = MatrixXd::Identity(4, 4) + 0.2 * random_matrix(4, 4, rng);
+    s.mean(r.ids[2]) = F * s.mean(r.ids[2]);
+    s.predict(r.ids[2], F, MatrixXd::Identity(4, 4) * 0.01);
+    MatrixXd Ff = MatrixXd::Identity(n, n);
+    Ff.block(r.offset_of(2), r.offset_of(2), 4, 4) = F;
+    MatrixXd Qf = MatrixXd::Zero(n, n);
+    Qf.block(r.offset_of(2), r.offset_of(2), 4, 4) = MatrixXd::Identity(4, 4) * 0.01;
+    r.x.segment(r.offset_of(2), 4) = F * r.x.segment(r.offset_of(2), 4);
+    r.P = Ff * r.P * Ff.transpose() + Qf;
+    expect_matches_dense(s, r, 1e-9);
+  }
+}
+
+}  // namespace
+}  // namespace rtslam::filter

@@ -42,6 +42,7 @@ State::State(StateOptions options)
       S_(MatrixXd::Zero(options.max_measurement_rows, options.max_measurement_rows)),
       z_(VectorXd::Zero(options.max_measurement_rows)),
       dx_(VectorXd::Zero(options.tangent_capacity)),
+      HP_(MatrixXd::Zero(options.max_measurement_rows, options.tangent_capacity)),
       tmp_(MatrixXd::Zero(options.max_block_tangent, options.tangent_capacity)),
       tmp_small_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)) {
   blocks_.reserve(256);
@@ -253,13 +254,22 @@ void State::innovation_covariance(std::span<const BlockId> blocks, const Eigen::
   RTSLAM_CHECK(m <= options_.max_measurement_rows && H.cols() == total_tangent(blocks) && R.rows() == m &&
                    S.rows() == m && S.cols() == m,
                "innovation_covariance: size mismatch");
-  compute_PHt(blocks, H);
+  // Only the involved blocks' covariance is read: S = Σ_a Σ_b H_a P_ab H_bᵀ + R.
   S = R;
-  int col = 0;
-  for (BlockId id : blocks) {
-    const BlockInfo& b = block(id);
-    S.noalias() += H.middleCols(col, b.tangent_size()) * PHt_.block(b.tangent_offset, 0, b.tangent_size(), m);
-    col += b.tangent_size();
+  int col_a = 0;
+  for (BlockId a : blocks) {
+    const BlockInfo& ba = block(a);
+    auto HPa = HP_.topRows(m);  // H_a P_a,b for each b, side by side
+    int col_b = 0;
+    for (BlockId b : blocks) {
+      const BlockInfo& bb = block(b);
+      HPa.middleCols(col_b, bb.tangent_size()).noalias() =
+          H.middleCols(col_a, ba.tangent_size()) *
+          P_.block(ba.tangent_offset, bb.tangent_offset, ba.tangent_size(), bb.tangent_size());
+      col_b += bb.tangent_size();
+    }
+    S.noalias() += HPa.leftCols(col_b) * H.transpose();
+    col_a += ba.tangent_size();
   }
   for (int j = 0; j < m; ++j)
     for (int i = j + 1; i < m; ++i) S(i, j) = S(j, i) = 0.5 * (S(i, j) + S(j, i));
@@ -294,6 +304,24 @@ CorrectionResult State::mean_correction(std::span<const BlockId> blocks, const E
   return res;
 }
 
+void State::mirror_lower_to_upper(Eigen::Block<MatrixXd> A) {
+  // Tiled so that both the read (rows) and the write (columns) stay in cache.
+  constexpr int kTile = 32;
+  const int n = static_cast<int>(A.rows());
+  for (int j0 = 0; j0 < n; j0 += kTile) {
+    const int nj = std::min(kTile, n - j0);
+    for (int i0 = 0; i0 <= j0; i0 += kTile) {
+      const int ni = std::min(kTile, n - i0);
+      if (i0 == j0) {
+        for (int j = 0; j < nj; ++j)
+          for (int i = 0; i < j; ++i) A(i0 + i, j0 + j) = A(j0 + j, i0 + i);
+      } else {
+        A.block(i0, j0, ni, nj) = A.block(j0, i0, nj, ni).transpose();
+      }
+    }
+  }
+}
+
 CorrectionResult State::correct(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
                                 const Eigen::Ref<const VectorXd>& y, const Eigen::Ref<const MatrixXd>& R,
                                 double gate_mahalanobis2) {
@@ -324,10 +352,11 @@ CorrectionResult State::correct(std::span<const BlockId> blocks, const Eigen::Re
     auto W = PHt_.block(r.begin, 0, r.length, m);
     L.transpose().solveInPlace<Eigen::OnTheRight>(W);
   }
-  // Always-on check: every variance stays positive.
+  // Always-on check: every positive variance stays positive (a zero-variance gauge row has W = 0 and stays 0).
   for (const Run& r : runs_) {
     for (int i = r.begin; i < r.begin + r.length; ++i) {
-      if (!(P_(i, i) - PHt_.row(i).head(m).squaredNorm() > 0.0)) {
+      const double after = P_(i, i) - PHt_.row(i).head(m).squaredNorm();
+      if (!(after > 0.0 || (after == 0.0 && P_(i, i) == 0.0))) {
         res.status = CorrectionResult::Status::NonPositiveVariance;
         return res;
       }
@@ -343,8 +372,7 @@ CorrectionResult State::correct(std::span<const BlockId> blocks, const Eigen::Re
     const auto Wa = PHt_.block(ra.begin, 0, ra.length, m);
     auto Paa = P_.block(ra.begin, ra.begin, ra.length, ra.length);
     Paa.selfadjointView<Eigen::Lower>().rankUpdate(Wa, -1.0);
-    for (int j = 0; j < ra.length; ++j)
-      for (int i = 0; i < j; ++i) Paa(i, j) = Paa(j, i);
+    mirror_lower_to_upper(Paa);
     for (size_t b = 0; b < a; ++b) {
       const Run rb = runs_[b];
       auto Pab = P_.block(ra.begin, rb.begin, ra.length, rb.length);

@@ -137,6 +137,8 @@ class State {
   bool factor_S(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
                 const Eigen::Ref<const MatrixXd>& R, int m) const;
   void rebuild_runs();
+  /// Copies the strict lower triangle of a square block onto its upper triangle.
+  static void mirror_lower_to_upper(Eigen::Block<MatrixXd> A);
 
   StateOptions options_;
   VectorXd x_;
@@ -153,6 +155,7 @@ class State {
   mutable MatrixXd S_;     // max rows × max rows (its lower triangle holds L after factorization)
   mutable VectorXd z_;     // whitened innovation L⁻¹ y
   mutable VectorXd dx_;    // tangent capacity
+  mutable MatrixXd HP_;    // max rows × tangent capacity (innovation covariance)
   MatrixXd tmp_;           // max block tangent × tangent capacity (prediction)
   MatrixXd tmp_small_;     // max block tangent × max block tangent
 };

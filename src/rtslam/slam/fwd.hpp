@@ -1,0 +1,13 @@
+#pragma once
+// Forward declarations of the object model (World → Maps → Robots and Landmarks; Robots own Sensors; one
+// Observation per sensor–landmark pair).
+namespace rtslam::slam {
+class World;
+class Map;
+class Robot;
+class Sensor;
+class Landmark;
+struct Observation;
+class DataManager;
+class MapManager;
+}  // namespace rtslam::slam

@@ -1,0 +1,59 @@
+#include "rtslam/slam/landmark.hpp"
+
+#include "rtslam/models/landmarks/ahp.hpp"
+#include "rtslam/models/landmarks/euclidean_point.hpp"
+#include "rtslam/slam/sensor.hpp"
+
+namespace rtslam::slam {
+
+const char* to_string(LandmarkType t) {
+  switch (t) {
+    case LandmarkType::AhpPoint: return "ahp";
+    case LandmarkType::EuclideanPoint: return "euclidean";
+  }
+  return "?";
+}
+
+Landmark::~Landmark() = default;
+
+Observation* Landmark::observation_of(const Sensor& s) {
+  for (auto& o : observations_)
+    if (o.sensor == &s) return &o;
+  return nullptr;
+}
+
+Eigen::Vector3d AhpPointLandmark::to_sensor(const Eigen::VectorXd& mean, const math::Pose& T_WS,
+                                            Eigen::Matrix<double, 3, 6>* J_h_TWS, LandmarkJacobian* J_h_L) const {
+  // The map is owned elsewhere; the landmark reads its block through the mean vector and the offset cached by Map.
+  const models::Vector7d L = mean.segment<7>(ambient_offset_);
+  Eigen::Matrix3d J_p;
+  Eigen::Matrix3d J_q;
+  Eigen::Matrix<double, 3, 7> J_L;
+  const Eigen::Vector3d h = models::ahp_to_sensor(L, T_WS, J_h_TWS ? &J_p : nullptr, J_h_TWS ? &J_q : nullptr,
+                                                  J_h_L ? &J_L : nullptr);
+  if (J_h_TWS) *J_h_TWS << J_p, J_q;
+  if (J_h_L) *J_h_L = J_L;
+  return h;
+}
+
+Eigen::Vector3d AhpPointLandmark::position(const Eigen::VectorXd& mean) const {
+  return models::ahp_to_euclidean(mean.segment<7>(ambient_offset_));
+}
+
+Eigen::Vector3d EuclideanPointLandmark::to_sensor(const Eigen::VectorXd& mean, const math::Pose& T_WS,
+                                                  Eigen::Matrix<double, 3, 6>* J_h_TWS, LandmarkJacobian* J_h_L) const {
+  Eigen::Matrix3d J_p;
+  Eigen::Matrix3d J_q;
+  Eigen::Matrix3d J_L;
+  const Eigen::Vector3d h = models::point_to_sensor(mean.segment<3>(ambient_offset_), T_WS, J_h_TWS ? &J_p : nullptr,
+                                                    J_h_TWS ? &J_q : nullptr, J_h_L ? &J_L : nullptr);
+  if (J_h_TWS) *J_h_TWS << J_p, J_q;
+  if (J_h_L) *J_h_L = J_L;
+  return h;
+}
+
+Eigen::Vector3d EuclideanPointLandmark::position(const Eigen::VectorXd& mean) const {
+  return mean.segment<3>(ambient_offset_);
+}
+
+}  // namespace rtslam::slam

@@ -1,0 +1,57 @@
+#include "rtslam/slam/landmark_init.hpp"
+
+#include <limits>
+
+#include "rtslam/models/landmarks/euclidean_point.hpp"
+
+namespace rtslam::slam {
+
+Landmark* init_ahp_landmark(Map& map, Sensor& sensor, const Eigen::Vector2d& z, double sigma_px,
+                            const models::AhpPrior& prior, long frame) {
+  filter::State& state = map.state();
+  const Robot& robot = sensor.robot();
+  Eigen::Vector3d ray_S;
+  Eigen::Matrix<double, 3, 2> J_ray_z;
+  if (!sensor.back_project(z, ray_S, &J_ray_z)) return nullptr;
+  Eigen::Matrix<double, 6, 6> J_TWS_TWR;
+  const math::Pose T_WS = sensor.pose_in_world(state.mean_vector(), &J_TWS_TWR);
+  Eigen::Matrix<double, 7, 3> J_L_pWS;
+  Eigen::Matrix<double, 7, 3> J_L_qWS;
+  Eigen::Matrix<double, 7, 3> J_L_ray;
+  Eigen::Matrix<double, 7, 1> J_L_rho;
+  const models::Vector7d L =
+      models::ahp_from_ray(T_WS, ray_S, prior.rho_mean(), &J_L_pWS, &J_L_qWS, &J_L_ray, &J_L_rho);
+  const int tr = state.block(robot.block()).tangent_size();
+  Eigen::MatrixXd J(7, tr);
+  J.setZero();
+  Eigen::Matrix<double, 7, 6> J_L_TWS;
+  J_L_TWS << J_L_pWS, J_L_qWS;
+  J.leftCols<6>() = J_L_TWS * J_TWS_TWR;
+  const Eigen::Matrix<double, 7, 2> J_L_z = J_L_ray * J_ray_z;
+  Eigen::Matrix<double, 7, 7> Q = sigma_px * sigma_px * J_L_z * J_L_z.transpose();
+  Q.noalias() += prior.rho_sigma() * prior.rho_sigma() * J_L_rho * J_L_rho.transpose();
+  const filter::BlockId parents[1] = {robot.block()};
+  Landmark* lmk = map.add_landmark(filter::BlockLayout::euclidean(7), L, parents, J, Q,
+                                   [](int id, filter::BlockId b) { return std::make_unique<AhpPointLandmark>(id, b); });
+  if (lmk) lmk->frame_created = frame;
+  return lmk;
+}
+
+Landmark* reparametrize_to_euclidean(Map& map, Landmark& ahp) {
+  if (ahp.type() != LandmarkType::AhpPoint) return &ahp;
+  const models::Vector7d L = map.state().mean(ahp.block());
+  Eigen::Matrix<double, 3, 7> J_p_L;
+  const Eigen::Vector3d p = models::ahp_to_euclidean(L, &J_p_L);
+  return map.reparametrize(ahp, filter::BlockLayout::euclidean(3), p, J_p_L, [](int id, filter::BlockId b) {
+    return std::make_unique<EuclideanPointLandmark>(id, b);
+  });
+}
+
+double linearity_index(const Map& map, const Landmark& lmk, const Eigen::Vector3d& p_WS) {
+  if (lmk.type() != LandmarkType::AhpPoint) return std::numeric_limits<double>::infinity();
+  const models::Vector7d L = map.state().mean(lmk.block());
+  const Eigen::Matrix<double, 7, 7> P = map.state().cov(lmk.block());
+  return models::ahp_linearity_index(L, P, p_WS);
+}
+
+}  // namespace rtslam::slam

@@ -1,0 +1,55 @@
+#pragma once
+// The strategy interfaces of the paper: a DataManager per sensor (and landmark type) turns raw data into
+// corrections and new landmarks; a MapManager per map keeps it clean and bounded (reparametrization, removal).
+// Implementations live in strategies/; the System only sees these interfaces.
+#include <string>
+
+#include "rtslam/core/time.hpp"
+#include "rtslam/slam/fwd.hpp"
+
+namespace rtslam::slam {
+
+/// Raw data of one sensor at one time (an image, a list of simulated point measurements, ...).
+struct RawData {
+  virtual ~RawData() = default;
+  TimeNs t = 0;
+  int sensor_id = 0;
+};
+
+/// Per-frame statistics the data manager fills (written to frames.csv later).
+struct FrameStats {
+  TimeNs t = 0;
+  int landmarks_in_map = 0;
+  int visible = 0;
+  int searched = 0;
+  int matched = 0;
+  int updated = 0;
+  int initialized = 0;
+  int ransac_inliers = 0;
+  int reparametrized = 0;
+  int removed = 0;
+  double time_predict_ms = 0.0;
+  double time_update_ms = 0.0;
+  double time_init_ms = 0.0;
+  double time_map_ms = 0.0;
+  double time_total_ms = 0.0;
+};
+
+class MapManager {
+ public:
+  virtual ~MapManager() = default;
+  /// Whether a landmark block of `tangent_size` rows may be added now.
+  virtual bool has_room(const Map& map, int tangent_size) const = 0;
+  /// After every frame of `sensor`: reparametrize and remove landmarks according to the policy.
+  virtual void manage(Map& map, const Sensor& sensor, long frame, FrameStats& stats) = 0;
+};
+
+class DataManager {
+ public:
+  virtual ~DataManager() = default;
+  /// Processes one raw datum of its sensor: observe, correct, initialize. The robot is already at raw.t.
+  virtual void process(Map& map, Sensor& sensor, const RawData& raw, long frame, FrameStats& stats) = 0;
+  virtual std::string name() const = 0;
+};
+
+}  // namespace rtslam::slam

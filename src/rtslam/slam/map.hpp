@@ -1,0 +1,69 @@
+#pragma once
+// A Map owns the estimation engine (filter::State) and the robots and landmarks whose states it holds; the
+// World owns maps. Several robots, several sensors per robot, several landmark types, and landmarks shared by
+// every sensor are possible: each new landmark gets one Observation per sensor of every robot in the map.
+#include <functional>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "rtslam/filter/state.hpp"
+#include "rtslam/slam/landmark.hpp"
+#include "rtslam/slam/robot.hpp"
+#include "rtslam/slam/sensor.hpp"
+
+namespace rtslam::slam {
+
+class Map {
+ public:
+  explicit Map(filter::StateOptions options = {});
+  Map(const Map&) = delete;
+  Map& operator=(const Map&) = delete;
+  ~Map();
+
+  filter::State& state() { return state_; }
+  const filter::State& state() const { return state_; }
+
+  /// Adds a robot with its prior (mean: robot ambient layout; cov: tangent). Throws if the state is full.
+  Robot& add_robot(std::unique_ptr<Robot> robot, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0);
+  const std::vector<std::unique_ptr<Robot>>& robots() const { return robots_; }
+  /// Every sensor of every robot, in robot then sensor order.
+  std::vector<Sensor*> sensors() const;
+
+  /// Adds a landmark block built from parents (see filter::State::add_block) and a landmark object made by
+  /// `make(id, block)`. Returns nullptr if the state has no room.
+  Landmark* add_landmark(const filter::BlockLayout& layout, const Eigen::Ref<const Eigen::VectorXd>& mean,
+                         std::span<const filter::BlockId> parents, const Eigen::Ref<const Eigen::MatrixXd>& J,
+                         const Eigen::Ref<const Eigen::MatrixXd>& Q,
+                         const std::function<std::unique_ptr<Landmark>(int id, filter::BlockId block)>& make);
+  /// Replaces a landmark by another parametrization x_new = g(x_old) with Jacobian J_new_old (e.g. AHP →
+  /// Euclidean); id, descriptor and observations (counters) carry over, the old block is freed.
+  /// Returns the new landmark, or nullptr (nothing changed) if there is no room.
+  Landmark* reparametrize(Landmark& old, const filter::BlockLayout& layout, const Eigen::Ref<const Eigen::VectorXd>& mean,
+                          const Eigen::Ref<const Eigen::MatrixXd>& J_new_old,
+                          const std::function<std::unique_ptr<Landmark>(int id, filter::BlockId block)>& make);
+  void remove_landmark(Landmark& lmk);
+  const std::vector<std::unique_ptr<Landmark>>& landmarks() const { return landmarks_; }
+  Landmark* find_landmark(int id) const;
+
+ private:
+  void create_observations(Landmark& lmk);
+  filter::State state_;
+  std::vector<std::unique_ptr<Robot>> robots_;
+  std::vector<std::unique_ptr<Landmark>> landmarks_;
+  int next_landmark_id_ = 0;
+  int next_sensor_id_ = 0;
+  friend class Robot;
+  int take_sensor_id() { return next_sensor_id_++; }
+};
+
+class World {
+ public:
+  Map& add_map(filter::StateOptions options = {});
+  const std::vector<std::unique_ptr<Map>>& maps() const { return maps_; }
+
+ private:
+  std::vector<std::unique_ptr<Map>> maps_;
+};
+
+}  // namespace rtslam::slam

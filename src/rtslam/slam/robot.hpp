@@ -1,0 +1,71 @@
+#pragma once
+// Robots: a state block in the map whose first segments are the pose [p_WR(3) q_WR(4)] (tangent [δp δθ], the
+// first 6 covariance rows of the block), then model-specific states. Robots own their sensors.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rtslam/core/time.hpp"
+#include "rtslam/filter/state.hpp"
+#include "rtslam/math/rotation.hpp"
+#include "rtslam/models/robots/constant_velocity.hpp"
+#include "rtslam/slam/fwd.hpp"
+
+namespace rtslam::slam {
+
+class Robot {
+ public:
+  virtual ~Robot();
+  Robot(const Robot&) = delete;
+  Robot& operator=(const Robot&) = delete;
+
+  int id() const { return id_; }
+  const std::string& name() const { return name_; }
+  filter::BlockId block() const { return block_; }
+  Map& map() const { return *map_; }
+  TimeNs time() const { return time_; }
+
+  /// T_WR from a mean vector (the map's, or a hypothesis of one-point RANSAC).
+  math::Pose pose(const Eigen::VectorXd& mean) const;
+  math::Pose pose() const;
+  /// Moves the robot (mean and covariance) to time t. Returns false if t is before the robot's time.
+  virtual bool predict_to(TimeNs t) = 0;
+  virtual filter::BlockLayout layout() const = 0;
+
+  Sensor& add_sensor(std::unique_ptr<Sensor> sensor);
+  const std::vector<std::unique_ptr<Sensor>>& sensors() const { return sensors_; }
+
+  /// Called by Map::add_robot: allocates the block with the given prior (gauge: the first robot's pose defines
+  /// the world frame, so its pose rows may have zero covariance).
+  void attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0);
+
+ protected:
+  explicit Robot(std::string name) : name_(std::move(name)) {}
+  Map* map_ = nullptr;
+  filter::BlockId block_ = filter::kNoBlock;
+  TimeNs time_ = 0;
+
+ private:
+  int id_ = -1;
+  std::string name_;
+  std::vector<std::unique_ptr<Sensor>> sensors_;
+};
+
+/// The constant-velocity robot [p q v ω] (../shared/MATH.md "Robots"): prediction by dt with process noise
+/// from continuous-time densities.
+class ConstantVelocityRobot final : public Robot {
+ public:
+  explicit ConstantVelocityRobot(models::ConstantVelocityParams params, std::string name = "robot");
+  bool predict_to(TimeNs t) override;
+  filter::BlockLayout layout() const override { return static_layout(); }
+  static filter::BlockLayout static_layout();
+  const models::ConstantVelocityParams& params() const { return params_; }
+
+ private:
+  models::ConstantVelocityParams params_;
+  models::Vector13d x_tmp_;
+  models::Matrix12d F_;
+  models::Matrix12d Q_;
+};
+
+}  // namespace rtslam::slam

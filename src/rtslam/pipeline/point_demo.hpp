@@ -1,0 +1,57 @@
+#pragma once
+// The walking skeleton: monocular EKF-SLAM on simulated point measurements with known data association.
+// A room whose walls, floor and ceiling carry a few hundred 3D points; a camera (EuRoC cam0 intrinsics,
+// distortion and T_RS) on a hand-held robot body moving along the simulator's `handheld` trajectory; pixel
+// measurements with Gaussian noise; the constant-velocity robot, undelayed AHP initialization, reparametrization
+// to Euclidean points, and a policy map manager. Everything is seeded: the same options give the same output.
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "rtslam/core/trajectory.hpp"
+#include "rtslam/models/robots/constant_velocity.hpp"
+#include "rtslam/models/sensors/pinhole_camera.hpp"
+#include "rtslam/math/rotation.hpp"
+#include "rtslam/slam/managers.hpp"
+#include "rtslam/strategies/known_association.hpp"
+#include "rtslam/strategies/map_policies.hpp"
+
+namespace rtslam::pipeline {
+
+/// EuRoC MAV cam0 (V1_01 sensor.yaml): 752x480, pinhole + radial-tangential, and its T_BS (our T_RS).
+models::CameraIntrinsics euroc_cam0_intrinsics();
+math::Pose euroc_cam0_T_RS();
+
+struct PointDemoOptions {
+  std::uint64_t seed = 1;
+  double duration_s = 30.0;
+  double rate_hz = 30.0;
+  int n_points = 500;
+  Eigen::Vector3d room_min{-4.0, -3.0, 0.0};  // m, W (z up)
+  Eigen::Vector3d room_max{4.0, 3.0, 3.0};
+  double sigma_px = 1.0;                       // pixel noise of the simulation (std, px)
+  double initial_velocity_std = 0.5;           // m/s and rad/s, the filter's prior on v and ω
+  models::ConstantVelocityParams motion;       // σ_v, σ_ω (RT-SLAM defaults 2, 2)
+  // The demo room keeps every surface at least 1.3 m from the camera (floor and ceiling, 1.5 m ± 0.15 m away), so
+  // its inverse-depth prior uses d_min = 1 m instead of RT-SLAM's hand-held 0.5 m: the prior then covers depths
+  // [1 m, ∞) at 2σ, as the scene requires (see docs/configuration.md on choosing d_min).
+  strategies::KnownAssociationOptions association{.prior = models::AhpPrior{.d_min = 1.0}};
+  strategies::MapPolicyOptions map;
+  int state_capacity = 600;                    // covariance rows of the filter's storage
+  void validate() const;
+};
+
+struct PointDemoResult {
+  Trajectory estimate;     // T_WR per frame, with the 6x6 pose covariance
+  Trajectory groundtruth;  // true T_WR per frame
+  std::vector<slam::FrameStats> frames;
+  int landmarks_final = 0;
+  int landmarks_created = 0;
+  int euclidean_final = 0;
+};
+
+/// Runs the demo; `on_frame(i, n)` is called after each frame (progress display), may be empty.
+PointDemoResult run_point_demo(const PointDemoOptions& options,
+                               const std::function<void(int, int)>& on_frame = {});
+
+}  // namespace rtslam::pipeline

@@ -1,0 +1,492 @@
+#include "rtslam/io/calibration.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/io/text.hpp"
+
+namespace rtslam::io {
+namespace fs = std::filesystem;
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+/// A required scalar of a foreign (non-strict) YAML mapping.
+template <class T>
+T need(const YAML::Node& node, const std::string& key, const std::string& where) {
+  if (!node[key]) throw ConfigError(fmt::format("{}: missing required key '{}'", where, key));
+  try {
+    return node[key].as<T>();
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(fmt::format("{}: cannot read '{}' ({})", where, key, e.msg));
+  }
+}
+
+/// A list of exactly n (or, if n < 0, any number of) doubles; a list of rows is flattened; an OpenCV
+/// {rows, cols, data} mapping reads its data.
+std::vector<double> numbers(const YAML::Node& node, const std::string& key, const std::string& where, int n) {
+  if (!node[key]) throw ConfigError(fmt::format("{}: missing required key '{}'", where, key));
+  const YAML::Node n0 = node[key];
+  const YAML::Node data = n0.IsMap() && n0["data"] ? n0["data"] : n0;
+  if (!data.IsSequence()) throw ConfigError(fmt::format("{}: '{}' must be a list of numbers", where, key));
+  std::vector<double> out;
+  try {
+    for (const auto& item : data) {
+      if (item.IsSequence()) {
+        for (const auto& x : item) out.push_back(x.as<double>());
+      } else {
+        out.push_back(item.as<double>());
+      }
+    }
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(fmt::format("{}: cannot read '{}' as numbers ({})", where, key, e.msg));
+  }
+  if (n >= 0 && static_cast<int>(out.size()) != n) {
+    throw ConfigError(fmt::format("{}: '{}' has {} numbers, expected {}", where, key, out.size(), n));
+  }
+  for (double x : out) {
+    if (!std::isfinite(x)) throw ConfigError(fmt::format("{}: '{}' contains a non-finite number", where, key));
+  }
+  return out;
+}
+
+Eigen::Matrix4d matrix4(const YAML::Node& node, const std::string& key, const std::string& where) {
+  const auto v = numbers(node, key, where, 16);
+  Eigen::Matrix4d T;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) T(r, c) = v[static_cast<size_t>(4 * r + c)];
+  return T;
+}
+
+Eigen::Isometry3d to_isometry(const Eigen::Matrix4d& T) {
+  Eigen::Isometry3d iso = Eigen::Isometry3d::Identity();
+  iso.linear() = T.topLeftCorner<3, 3>();
+  iso.translation() = T.topRightCorner<3, 1>();
+  return iso;
+}
+
+void check_intrinsics(const CameraCalibration& cam, const std::string& where) {
+  require_bound(cam.width > 0, where, "width", cam.width, "> 0");
+  require_bound(cam.height > 0, where, "height", cam.height, "> 0");
+  require_bound(cam.fx > 0 && std::isfinite(cam.fx), where, "fx", cam.fx, "> 0");
+  require_bound(cam.fy > 0 && std::isfinite(cam.fy), where, "fy", cam.fy, "> 0");
+  require_bound(std::isfinite(cam.cx), where, "cx", cam.cx, "finite");
+  require_bound(std::isfinite(cam.cy), where, "cy", cam.cy, "finite");
+  require_bound(cam.rate_hz >= 0 && std::isfinite(cam.rate_hz), where, "rate_hz", cam.rate_hz, ">= 0");
+  const int n = distortion_coefficient_count(cam.distortion);
+  if (static_cast<int>(cam.distortion_coeffs.size()) != n) {
+    throw ConfigError(fmt::format("{}: distortion model '{}' takes {} coefficients, got {}", where,
+                                  to_string(cam.distortion), n, cam.distortion_coeffs.size()));
+  }
+}
+
+void check_imu(const ImuCalibration& imu, const std::string& where) {
+  require_bound(imu.rate_hz > 0, where, "rate_hz", imu.rate_hz, "> 0");
+  require_bound(imu.gyro_noise_density > 0, where, "gyroscope_noise_density", imu.gyro_noise_density, "> 0");
+  require_bound(imu.accel_noise_density > 0, where, "accelerometer_noise_density", imu.accel_noise_density, "> 0");
+  require_bound(imu.gyro_random_walk >= 0, where, "gyroscope_random_walk", imu.gyro_random_walk, ">= 0");
+  require_bound(imu.accel_random_walk >= 0, where, "accelerometer_random_walk", imu.accel_random_walk, ">= 0");
+}
+
+std::string folder_name(const std::string& path) {
+  const fs::path parent = fs::path(path).parent_path();
+  return parent.empty() ? std::string("cam0") : parent.filename().string();
+}
+
+}  // namespace
+
+std::string to_string(DistortionModel model) {
+  switch (model) {
+    case DistortionModel::None:
+      return "none";
+    case DistortionModel::RadTan:
+      return "radtan";
+    case DistortionModel::Equidistant:
+      return "equidistant";
+    case DistortionModel::MonoSlamOneParam:
+      return "monoslam_one_param";
+  }
+  return "unknown";
+}
+
+DistortionModel distortion_model_from_string(const std::string& name, const std::string& where) {
+  const std::string n = lower(name);
+  if (n == "none" || n == "pinhole") return DistortionModel::None;
+  if (n == "radtan" || n == "radial-tangential" || n == "radial_tangential" || n == "plumb_bob")
+    return DistortionModel::RadTan;
+  if (n == "equidistant" || n == "equi" || n == "fisheye" || n == "kannala_brandt") return DistortionModel::Equidistant;
+  if (n == "monoslam_one_param" || n == "monoslam" || n == "wideangle") return DistortionModel::MonoSlamOneParam;
+  throw ConfigError(fmt::format("{}: unknown distortion model '{}' (known: none, radtan, equidistant, "
+                                "monoslam_one_param)",
+                                where, name));
+}
+
+int distortion_coefficient_count(DistortionModel model) {
+  switch (model) {
+    case DistortionModel::None:
+      return 0;
+    case DistortionModel::RadTan:
+    case DistortionModel::Equidistant:
+      return 4;
+    case DistortionModel::MonoSlamOneParam:
+      return 1;
+  }
+  return 0;
+}
+
+void check_extrinsic(const Eigen::Matrix4d& T, const std::string& where, const std::string& key,
+                     std::vector<std::string>* warnings, bool warn_far) {
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  const double err = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double det = R.determinant();
+  if (!(err < 1e-6) || !(det > 0.0)) {
+    throw ConfigError(fmt::format("{}: '{}' rotation is not orthonormal (max |R^T R - I| = {:.3g}, det = {:.6g})",
+                                  where, key, err, det));
+  }
+  const Eigen::RowVector4d last = T.row(3);
+  if ((last - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
+    throw ConfigError(fmt::format("{}: '{}' last row must be [0 0 0 1]", where, key));
+  }
+  const double d = T.topRightCorner<3, 1>().norm();
+  if (warn_far && d > 0.5) {
+    const std::string msg = fmt::format(
+        "{}: '{}' puts the sensor {:.3f} m from the robot frame (> 0.5 m): is the transform inverted or in the wrong "
+        "unit?",
+        where, key, d);
+    logger("io")->warn("{}", msg);
+    if (warnings) warnings->push_back(msg);
+  }
+}
+
+YAML::Node load_yaml_lenient(const std::string& path) {
+  if (!fs::is_regular_file(path)) throw IoError(fmt::format("{}: file not found", path));
+  std::ifstream in(path);
+  if (!in) throw IoError(fmt::format("{}: cannot open for reading", path));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string text = ss.str();
+  // OpenCV FileStorage writes "%YAML:1.0" (not a valid YAML directive): comment it out, keeping line numbers.
+  if (text.rfind("%YAML:", 0) == 0 || text.rfind("%YAML 1.0", 0) == 0) text.insert(0, "#");
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    throw ConfigError(fmt::format("{}: malformed YAML at line {}: {}", path, e.mark.line + 1, e.msg));
+  } catch (const YAML::Exception& e) {
+    throw IoError(fmt::format("{}: cannot read YAML: {}", path, e.msg));
+  }
+}
+
+CameraCalibration load_euroc_camera(const std::string& path, std::vector<std::string>* warnings) {
+  const YAML::Node y = load_yaml_lenient(path);
+  if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
+  if (y["sensor_type"] && lower(y["sensor_type"].as<std::string>()) != "camera") {
+    throw ConfigError(fmt::format("{}: sensor_type is '{}', expected 'camera'", path,
+                                  y["sensor_type"].as<std::string>()));
+  }
+  CameraCalibration cam;
+  cam.name = folder_name(path);
+  const std::string model = y["camera_model"] ? need<std::string>(y, "camera_model", path) : "pinhole";
+  if (lower(model) != "pinhole") {
+    throw ConfigError(fmt::format("{}: camera_model '{}' is not supported (only pinhole)", path, model));
+  }
+  const auto res = numbers(y, "resolution", path, 2);
+  cam.width = static_cast<int>(res[0]);
+  cam.height = static_cast<int>(res[1]);
+  if (y["rate_hz"]) cam.rate_hz = need<double>(y, "rate_hz", path);
+  const auto k = numbers(y, "intrinsics", path, 4);
+  cam.fx = k[0];
+  cam.fy = k[1];
+  cam.cx = k[2];
+  cam.cy = k[3];
+  cam.distortion = distortion_model_from_string(
+      y["distortion_model"] ? need<std::string>(y, "distortion_model", path) : "none", path + ": distortion_model");
+  if (cam.distortion != DistortionModel::None) cam.distortion_coeffs = numbers(y, "distortion_coefficients", path, -1);
+  check_intrinsics(cam, path);
+  const Eigen::Matrix4d T_BS = matrix4(y, "T_BS", path);
+  check_extrinsic(T_BS, path, "T_BS", warnings);
+  cam.T_RS = to_isometry(T_BS);
+  return cam;
+}
+
+ImuCalibration load_euroc_imu(const std::string& path) {
+  const YAML::Node y = load_yaml_lenient(path);
+  if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
+  if (y["sensor_type"] && lower(y["sensor_type"].as<std::string>()) != "imu") {
+    throw ConfigError(fmt::format("{}: sensor_type is '{}', expected 'imu'", path, y["sensor_type"].as<std::string>()));
+  }
+  ImuCalibration imu;
+  imu.name = folder_name(path);
+  imu.rate_hz = need<double>(y, "rate_hz", path);
+  imu.gyro_noise_density = need<double>(y, "gyroscope_noise_density", path);
+  imu.gyro_random_walk = need<double>(y, "gyroscope_random_walk", path);
+  imu.accel_noise_density = need<double>(y, "accelerometer_noise_density", path);
+  imu.accel_random_walk = need<double>(y, "accelerometer_random_walk", path);
+  if (y["gyroscope_saturation"]) imu.gyro_saturation = need<double>(y, "gyroscope_saturation", path);
+  if (y["accelerometer_saturation"]) imu.accel_saturation = need<double>(y, "accelerometer_saturation", path);
+  check_imu(imu, path);
+  const Eigen::Matrix4d T_BS = matrix4(y, "T_BS", path);
+  check_extrinsic(T_BS, path, "T_BS", nullptr, false);
+  imu.T_RS = to_isometry(T_BS);
+  return imu;
+}
+
+ImuCalibration load_kalibr_imu(const std::string& path) {
+  const YAML::Node root = load_yaml_lenient(path);
+  if (!root.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
+  const YAML::Node y = root["imu0"] ? root["imu0"] : root;
+  const std::string where = root["imu0"] ? path + "/imu0" : path;
+  ImuCalibration imu;
+  imu.rate_hz = need<double>(y, "update_rate", where);
+  imu.gyro_noise_density = need<double>(y, "gyroscope_noise_density", where);
+  imu.gyro_random_walk = need<double>(y, "gyroscope_random_walk", where);
+  imu.accel_noise_density = need<double>(y, "accelerometer_noise_density", where);
+  imu.accel_random_walk = need<double>(y, "accelerometer_random_walk", where);
+  check_imu(imu, where);
+  // The IMU is the robot frame R: T_RS of the IMU is the identity whatever T_i_b says about a separate body frame.
+  if (y["T_i_b"]) check_extrinsic(matrix4(y, "T_i_b", where), where, "T_i_b", nullptr, false);
+  return imu;
+}
+
+Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
+  const YAML::Node root = load_yaml_lenient(camchain_path);
+  if (!root.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", camchain_path));
+  Rig rig;
+  bool first = true;
+  for (int i = 0;; ++i) {
+    const std::string name = fmt::format("cam{}", i);
+    if (!root[name]) break;
+    const YAML::Node y = root[name];
+    const std::string where = camchain_path + "/" + name;
+    CameraCalibration cam;
+    cam.name = name;
+    const std::string model = y["camera_model"] ? need<std::string>(y, "camera_model", where) : "pinhole";
+    if (lower(model) != "pinhole") {
+      throw ConfigError(fmt::format("{}: camera_model '{}' is not supported (only pinhole)", where, model));
+    }
+    const auto res = numbers(y, "resolution", where, 2);
+    cam.width = static_cast<int>(res[0]);
+    cam.height = static_cast<int>(res[1]);
+    const auto k = numbers(y, "intrinsics", where, 4);
+    cam.fx = k[0];
+    cam.fy = k[1];
+    cam.cx = k[2];
+    cam.cy = k[3];
+    cam.distortion = distortion_model_from_string(need<std::string>(y, "distortion_model", where),
+                                                  where + ": distortion_model");
+    if (cam.distortion != DistortionModel::None) cam.distortion_coeffs = numbers(y, "distortion_coeffs", where, -1);
+    if (y["rate_hz"]) cam.rate_hz = need<double>(y, "rate_hz", where);
+    check_intrinsics(cam, where);
+    if (y["T_cam_imu"]) {
+      const Eigen::Matrix4d T_SR = matrix4(y, "T_cam_imu", where);
+      check_extrinsic(T_SR, where, "T_cam_imu", &rig.warnings);
+      cam.T_RS = to_isometry(T_SR).inverse();
+    }
+    if (first && y["timeshift_cam_imu"]) rig.t_d = from_seconds(need<double>(y, "timeshift_cam_imu", where));
+    first = false;
+    rig.cameras.push_back(cam);
+  }
+  if (rig.cameras.empty()) throw ConfigError(fmt::format("{}: no 'cam0' entry: not a Kalibr camchain", camchain_path));
+  if (!imu_path.empty()) rig.imu = load_kalibr_imu(imu_path);
+  return rig;
+}
+
+CameraCalibration load_monoslam_camera(const std::string& path) {
+  if (!fs::is_regular_file(path)) throw IoError(fmt::format("{}: file not found", path));
+  std::ifstream in(path);
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw ConfigError(fmt::format("{}: malformed JSON: {}", path, e.what()));
+  }
+  const auto num = [&](const char* key) {
+    if (!j.contains(key) || !j[key].is_number()) {
+      throw ConfigError(fmt::format("{}: missing or non-numeric key '{}'", path, key));
+    }
+    return j[key].get<double>();
+  };
+  CameraCalibration cam;
+  cam.name = "cam0";
+  cam.width = static_cast<int>(num("width"));
+  cam.height = static_cast<int>(num("height"));
+  cam.rate_hz = j.contains("fps") ? num("fps") : 0.0;
+  cam.fx = num("focal_length_x");
+  cam.fy = num("focal_length_y");
+  cam.cx = num("principal_point_x");
+  cam.cy = num("principal_point_y");
+  const std::string model = j.contains("model") && j["model"].is_string() ? j["model"].get<std::string>() : "wideangle";
+  cam.distortion = distortion_model_from_string(model, path + ": model");
+  if (cam.distortion == DistortionModel::MonoSlamOneParam) {
+    const double kx = num("radial_distortion_x");
+    if (j.contains("radial_distortion_y") && num("radial_distortion_y") != kx) {
+      throw ConfigError(fmt::format("{}: radial_distortion_x != radial_distortion_y; the one-parameter model needs "
+                                    "them equal",
+                                    path));
+    }
+    cam.distortion_coeffs = {kx};
+  }
+  if (j.contains("skew") && num("skew") != 0.0) throw ConfigError(fmt::format("{}: non-zero skew is not supported", path));
+  check_intrinsics(cam, path);
+  cam.T_RS.linear() = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+  return cam;
+}
+
+namespace {
+
+Eigen::Isometry3d read_T(YamlMap& m, const std::string& key, std::vector<std::string>* warnings, bool warn_far) {
+  if (!m.has(key)) return Eigen::Isometry3d::Identity();
+  Eigen::Matrix4d T;
+  m.get_matrix(key, T);
+  check_extrinsic(T, m.where(), key, warnings, warn_far);
+  return to_isometry(T);
+}
+
+}  // namespace
+
+Rig load_rig_yaml(const std::string& path) {
+  YamlMap root(load_yaml_lenient(path), path);
+  Rig rig;
+  if (!root.has("cameras") || !root.node()["cameras"].IsSequence()) {
+    throw ConfigError(fmt::format("{}: 'cameras' must be a list", path));
+  }
+  YAML::Node cams;
+  root.get("cameras", cams);
+  for (size_t i = 0; i < cams.size(); ++i) {
+    YamlMap m(cams[i], fmt::format("{}/cameras[{}]", path, i));
+    CameraCalibration cam;
+    cam.name = fmt::format("cam{}", i);
+    m.get("name", cam.name);
+    cam.width = m.require<int>("width");
+    cam.height = m.require<int>("height");
+    m.get("rate_hz", cam.rate_hz);
+    Eigen::Vector4d k;
+    if (!m.has("intrinsics")) throw ConfigError(fmt::format("{}: missing required key 'intrinsics'", m.where()));
+    m.get_matrix("intrinsics", k);
+    cam.fx = k[0];
+    cam.fy = k[1];
+    cam.cx = k[2];
+    cam.cy = k[3];
+    std::string model = "none";
+    m.get("distortion_model", model);
+    cam.distortion = distortion_model_from_string(model, m.where() + ": distortion_model");
+    if (m.has("distortion_coeffs")) {
+      Eigen::VectorXd d(distortion_coefficient_count(cam.distortion));
+      m.get_matrix("distortion_coeffs", d);
+      cam.distortion_coeffs.assign(d.data(), d.data() + d.size());
+    }
+    check_intrinsics(cam, m.where());
+    cam.T_RS = read_T(m, "T_RS", &rig.warnings, true);
+    m.finish();
+    rig.cameras.push_back(cam);
+  }
+  if (root.has("imu")) {
+    YamlMap m = root.child("imu");
+    ImuCalibration imu;
+    m.get("name", imu.name);
+    imu.rate_hz = m.require<double>("rate_hz");
+    imu.gyro_noise_density = m.require<double>("gyro_noise_density");
+    imu.gyro_random_walk = m.require<double>("gyro_random_walk");
+    imu.accel_noise_density = m.require<double>("accel_noise_density");
+    imu.accel_random_walk = m.require<double>("accel_random_walk");
+    if (m.has("gyro_saturation")) imu.gyro_saturation = m.require<double>("gyro_saturation");
+    if (m.has("accel_saturation")) imu.accel_saturation = m.require<double>("accel_saturation");
+    check_imu(imu, m.where());
+    imu.T_RS = read_T(m, "T_RS", nullptr, false);
+    m.finish();
+    rig.imu = imu;
+  }
+  double t_d_s = 0.0;
+  if (root.has("t_d_ns")) {
+    std::int64_t t_d = 0;
+    root.get("t_d_ns", t_d);
+    rig.t_d = t_d;
+  }
+  root.get("t_d", t_d_s);
+  if (t_d_s != 0.0) rig.t_d = from_seconds(t_d_s);
+  root.finish();
+  return rig;
+}
+
+void write_rig_yaml(const std::string& path, const Rig& rig) {
+  auto out = open_for_writing(path);
+  const auto mat = [](const Eigen::Isometry3d& T) {
+    std::string s = "[";
+    for (int r = 0; r < 4; ++r) {
+      s += r == 0 ? "[" : ", [";
+      for (int c = 0; c < 4; ++c) s += (c ? ", " : "") + format_double(T.matrix()(r, c));
+      s += "]";
+    }
+    return s + "]";
+  };
+  out << "# rtslam rig calibration (docs/datasets.md). T_RS maps sensor points into the robot frame R.\n";
+  out << "t_d_ns: " << rig.t_d << "  # t_imu = t_cam + t_d\n";
+  out << "cameras:\n";
+  for (const auto& c : rig.cameras) {
+    out << "  - name: " << c.name << "\n    width: " << c.width << "\n    height: " << c.height
+        << "\n    rate_hz: " << format_double(c.rate_hz) << "\n    intrinsics: [" << format_double(c.fx) << ", "
+        << format_double(c.fy) << ", " << format_double(c.cx) << ", " << format_double(c.cy) << "]  # fx fy cx cy [px]"
+        << "\n    distortion_model: " << to_string(c.distortion) << "\n    distortion_coeffs: [";
+    for (size_t i = 0; i < c.distortion_coeffs.size(); ++i) out << (i ? ", " : "") << format_double(c.distortion_coeffs[i]);
+    out << "]\n    T_RS: " << mat(c.T_RS) << "\n";
+  }
+  if (rig.imu) {
+    const auto& m = *rig.imu;
+    out << "imu:\n  name: " << m.name << "\n  rate_hz: " << format_double(m.rate_hz)
+        << "\n  gyro_noise_density: " << format_double(m.gyro_noise_density) << "  # rad/s/sqrt(Hz)"
+        << "\n  gyro_random_walk: " << format_double(m.gyro_random_walk) << "  # rad/s^2/sqrt(Hz)"
+        << "\n  accel_noise_density: " << format_double(m.accel_noise_density) << "  # m/s^2/sqrt(Hz)"
+        << "\n  accel_random_walk: " << format_double(m.accel_random_walk) << "  # m/s^3/sqrt(Hz)\n";
+    if (m.gyro_saturation) out << "  gyro_saturation: " << format_double(*m.gyro_saturation) << "  # rad/s\n";
+    if (m.accel_saturation) out << "  accel_saturation: " << format_double(*m.accel_saturation) << "  # m/s^2\n";
+    out << "  T_RS: " << mat(m.T_RS) << "\n";
+  }
+  close_checked(out, path);
+}
+
+Rig load_calibration(const std::string& path) {
+  if (lower(fs::path(path).extension().string()) == ".json") {
+    Rig rig;
+    rig.cameras.push_back(load_monoslam_camera(path));
+    return rig;
+  }
+  const YAML::Node y = load_yaml_lenient(path);
+  if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
+  if (y["cameras"]) return load_rig_yaml(path);
+  if (y["cam0"]) return load_kalibr(path);
+  if (y["sensor_type"]) {
+    const std::string type = lower(y["sensor_type"].as<std::string>());
+    Rig rig;
+    if (type == "camera") {
+      rig.cameras.push_back(load_euroc_camera(path, &rig.warnings));
+      return rig;
+    }
+    if (type == "imu") {
+      rig.imu = load_euroc_imu(path);
+      return rig;
+    }
+    throw ConfigError(fmt::format("{}: sensor_type '{}' is not a camera or an imu", path, type));
+  }
+  if (y["imu0"] || y["accelerometer_noise_density"]) {
+    Rig rig;
+    rig.imu = load_kalibr_imu(path);
+    return rig;
+  }
+  throw ConfigError(fmt::format("{}: not a known calibration file (rtslam 'cameras:', Kalibr 'cam0:', EuRoC "
+                                "'sensor_type:', Kalibr imu 'imu0:')",
+                                path));
+}
+
+}  // namespace rtslam::io

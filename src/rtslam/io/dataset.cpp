@@ -1,0 +1,502 @@
+#include "rtslam/io/dataset.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <map>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
+#include "rtslam/io/text.hpp"
+#include "rtslam/io/trajectory_io.hpp"
+
+namespace rtslam::io {
+namespace fs = std::filesystem;
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+bool is_header(std::string_view s) {
+  s = trim(s);
+  return !s.empty() && (s.front() == '#' || std::isalpha(static_cast<unsigned char>(s.front())));
+}
+
+bool natural_less(const std::string& a, const std::string& b) {
+  size_t i = 0;
+  size_t j = 0;
+  while (i < a.size() && j < b.size()) {
+    if (std::isdigit(static_cast<unsigned char>(a[i])) && std::isdigit(static_cast<unsigned char>(b[j]))) {
+      size_t i2 = i;
+      size_t j2 = j;
+      while (i2 < a.size() && std::isdigit(static_cast<unsigned char>(a[i2]))) ++i2;
+      while (j2 < b.size() && std::isdigit(static_cast<unsigned char>(b[j2]))) ++j2;
+      // Compare numerically: strip leading zeros, then by length, then lexicographically.
+      size_t ia = i;
+      size_t jb = j;
+      while (ia + 1 < i2 && a[ia] == '0') ++ia;
+      while (jb + 1 < j2 && b[jb] == '0') ++jb;
+      if (i2 - ia != j2 - jb) return i2 - ia < j2 - jb;
+      const int c = a.compare(ia, i2 - ia, b, jb, j2 - jb);
+      if (c != 0) return c < 0;
+      if (i2 - i != j2 - j) return i2 - i < j2 - j;
+      i = i2;
+      j = j2;
+    } else {
+      if (a[i] != b[j]) return a[i] < b[j];
+      ++i;
+      ++j;
+    }
+  }
+  return a.size() - i < b.size() - j;
+}
+
+std::string first_existing(const fs::path& dir, std::initializer_list<const char*> names) {
+  for (const char* n : names) {
+    if (fs::is_regular_file(dir / n)) return (dir / n).string();
+  }
+  return {};
+}
+
+std::vector<cv::Size> sizes_of(const Rig& rig) {
+  std::vector<cv::Size> sizes;
+  for (const auto& c : rig.cameras) sizes.emplace_back(c.width, c.height);
+  return sizes;
+}
+
+StreamCheckOptions check_options(const DatasetOptions& o, const Rig& rig) {
+  StreamCheckOptions s;
+  s.policy = o.bad_input;
+  s.imu_rate_hz = rig.imu ? rig.imu->rate_hz : 0.0;
+  s.max_imu_dropout = o.max_imu_dropout;
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------- EuRoC / ASL
+
+/// Reads camN/data.csv (`t,filename`): entries with their line, malformed lines reported.
+std::vector<ImageEntry> read_euroc_images(const fs::path& cam_dir, int camera, BadInputReporter& reporter) {
+  const std::string csv = (cam_dir / "data.csv").string();
+  LineReader in(csv);
+  std::vector<ImageEntry> out;
+  std::string line;
+  while (in.next(line)) {
+    if (trim(line).empty() || (in.line_number() == 1 && is_header(line)) || trim(line).front() == '#') continue;
+    const auto f = split(line, ',');
+    ImageEntry e;
+    e.camera = camera;
+    e.listed_at = fmt::format("{}:{}", csv, in.line_number());
+    if (f.size() != 2 || f[1].empty() || !parse_int64(f[0], e.t)) {
+      reporter.report(&SourceStats::malformed_lines,
+                      fmt::format("{}: expected 'timestamp [ns],filename', got '{}'", e.listed_at, line), true);
+      continue;
+    }
+    e.path = (cam_dir / "data" / std::string(f[1])).string();
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+/// Reads imu0/data.csv (`t, w xyz, a xyz`).
+void read_euroc_imu(const std::string& csv, std::vector<ImuSample>& imu, std::vector<int>& lines,
+                    BadInputReporter& reporter) {
+  LineReader in(csv);
+  std::string line;
+  while (in.next(line)) {
+    if (trim(line).empty() || (in.line_number() == 1 && is_header(line)) || trim(line).front() == '#') continue;
+    const auto f = split(line, ',');
+    ImuSample s;
+    bool ok = f.size() == 7 && parse_int64(f[0], s.t);
+    for (int k = 0; ok && k < 3; ++k) ok = parse_double(f[1 + k], s.gyro[k]) && parse_double(f[4 + k], s.accel[k]);
+    if (!ok) {
+      reporter.report(&SourceStats::malformed_lines,
+                      fmt::format("{}:{}: expected 7 numbers 'timestamp [ns], w_x, w_y, w_z, a_x, a_y, a_z', got '{}'",
+                                  csv, in.line_number(), line),
+                      true);
+      continue;
+    }
+    imu.push_back(s);
+    lines.push_back(in.line_number());
+  }
+}
+
+Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
+  const fs::path root = fs::is_directory(root_in / "mav0") ? root_in / "mav0" : root_in;
+  Dataset ds;
+  ds.kind = "euroc";
+  ds.path = root_in.string();
+  ds.name = (root.filename() == "mav0" ? root.parent_path() : root).filename().string();
+  // Calibration: our robot frame R is the IMU; T_RS(cam) = T_BI^-1 T_BC with EuRoC's body frame B.
+  Eigen::Isometry3d T_BI = Eigen::Isometry3d::Identity();
+  const fs::path imu_dir = root / "imu0";
+  const bool has_imu = fs::is_regular_file(imu_dir / "data.csv");
+  if (o.calibration.empty()) {
+    if (has_imu) {
+      ds.rig.imu = load_euroc_imu((imu_dir / "sensor.yaml").string());
+      T_BI = ds.rig.imu->T_RS;
+      ds.rig.imu->T_RS = Eigen::Isometry3d::Identity();
+    }
+    for (int c : o.cameras) {
+      const fs::path cam_dir = root / fmt::format("cam{}", c);
+      if (!fs::is_directory(cam_dir)) throw IoError(fmt::format("{}: camera folder not found", cam_dir.string()));
+      CameraCalibration cam = load_euroc_camera((cam_dir / "sensor.yaml").string(), &ds.rig.warnings);
+      cam.T_RS = T_BI.inverse() * cam.T_RS;
+      ds.rig.cameras.push_back(cam);
+    }
+  } else {
+    const Rig all = load_calibration(o.calibration);
+    ds.rig.imu = all.imu;
+    ds.rig.t_d = all.t_d;
+    ds.rig.warnings = all.warnings;
+    for (int c : o.cameras) {
+      if (c < 0 || static_cast<size_t>(c) >= all.cameras.size()) {
+        throw ConfigError(fmt::format("{}: has no camera {}", o.calibration, c));
+      }
+      ds.rig.cameras.push_back(all.cameras[static_cast<size_t>(c)]);
+    }
+  }
+  // Problems met while parsing the lists (malformed lines) follow the same policy; their counts are merged into
+  // the source's stats.
+  SourceStats scratch;
+  const StreamCheckOptions checks = check_options(o, ds.rig);
+  BadInputReporter parse_reporter(o.bad_input, scratch);
+  std::vector<ImageEntry> images;
+  for (size_t i = 0; i < o.cameras.size(); ++i) {
+    auto e = read_euroc_images(root / fmt::format("cam{}", o.cameras[i]), static_cast<int>(i), parse_reporter);
+    images.insert(images.end(), std::make_move_iterator(e.begin()), std::make_move_iterator(e.end()));
+  }
+  std::vector<ImuSample> imu;
+  std::vector<int> lines;
+  if (has_imu && o.use_imu) read_euroc_imu((imu_dir / "data.csv").string(), imu, lines, parse_reporter);
+  auto src = std::make_unique<IndexedSource>(std::move(imu), std::move(lines), (imu_dir / "data.csv").string(),
+                                             std::move(images), sizes_of(ds.rig), checks);
+  src->add_parse_problems(scratch);
+  ds.source = std::move(src);
+  const fs::path gt = root / "state_groundtruth_estimate0" / "data.csv";
+  if (fs::is_regular_file(gt)) ds.ground_truth = read_trajectory(gt.string(), TrajectoryFormat::EurocCsv);
+  return ds;
+}
+
+// ---------------------------------------------------------------------------------------------- TUM
+
+Rig calibration_for(const fs::path& dir, const DatasetOptions& o, std::initializer_list<const char*> names) {
+  std::string path = o.calibration.empty() ? first_existing(dir, names) : o.calibration;
+  if (path.empty()) {
+    throw IoError(fmt::format("{}: no calibration file found (looked for {}): give one with the calibration option",
+                              dir.string(), fmt::join(names, ", ")));
+  }
+  Rig rig = load_calibration(path);
+  if (rig.cameras.empty()) throw ConfigError(fmt::format("{}: calibration has no camera", path));
+  return rig;
+}
+
+Dataset open_tum(const fs::path& root, const DatasetOptions& o) {
+  Dataset ds;
+  ds.kind = "tum";
+  ds.path = root.string();
+  ds.name = root.filename().string();
+  const Rig all = calibration_for(root, o, {"calibration.yaml", "camera.yaml", "sensor.yaml", "camchain.yaml"});
+  ds.rig = all;
+  ds.rig.cameras = {all.cameras.front()};
+  ds.rig.imu.reset();  // TUM RGB-D accelerometer.txt is the Kinect's tilt sensor, not an IMU stream
+  SourceStats scratch;
+  BadInputReporter reporter(o.bad_input, scratch);
+  const std::string list = (root / "rgb.txt").string();
+  LineReader in(list);
+  std::vector<ImageEntry> images;
+  std::string line;
+  while (in.next(line)) {
+    const std::string_view s = trim(line);
+    if (s.empty() || s.front() == '#') continue;
+    const auto f = split(s, ' ');
+    ImageEntry e;
+    e.listed_at = fmt::format("{}:{}", list, in.line_number());
+    if (f.size() != 2 || !parse_seconds(f[0], e.t)) {
+      reporter.report(&SourceStats::malformed_lines,
+                      fmt::format("{}: expected 'timestamp[s] filename', got '{}'", e.listed_at, line), true);
+      continue;
+    }
+    e.path = (root / std::string(f[1])).string();
+    images.push_back(std::move(e));
+  }
+  auto src = std::make_unique<IndexedSource>(std::vector<ImuSample>{}, std::vector<int>{}, "", std::move(images),
+                                             sizes_of(ds.rig), check_options(o, ds.rig));
+  src->add_parse_problems(scratch);
+  ds.source = std::move(src);
+  if (fs::is_regular_file(root / "groundtruth.txt")) {
+    ds.ground_truth = read_trajectory((root / "groundtruth.txt").string(), TrajectoryFormat::Tum);
+  }
+  return ds;
+}
+
+// ---------------------------------------------------------------------------------------------- KITTI
+
+std::vector<TimeNs> read_times(const std::string& path, BadInputReporter& reporter) {
+  LineReader in(path);
+  std::vector<TimeNs> times;
+  std::string line;
+  while (in.next(line)) {
+    const std::string_view s = trim(line);
+    if (s.empty() || s.front() == '#') continue;
+    TimeNs t = 0;
+    const auto f = split(s, ' ');
+    if (f.empty() || !parse_seconds(f[0], t)) {
+      reporter.report(&SourceStats::malformed_lines,
+                      fmt::format("{}:{}: '{}' is not a time in seconds", path, in.line_number(), line), true);
+      continue;
+    }
+    times.push_back(t);
+  }
+  return times;
+}
+
+Dataset open_kitti(const fs::path& seq, const DatasetOptions& o) {
+  Dataset ds;
+  ds.kind = "kitti";
+  ds.path = seq.string();
+  ds.name = "kitti-" + seq.filename().string();
+  SourceStats scratch;
+  BadInputReporter reporter(o.bad_input, scratch);
+  const int cam_index = o.cameras.empty() ? 0 : o.cameras.front();
+  if (o.cameras.size() > 1) throw ConfigError("kitti: only one camera (image_N folder) can be streamed");
+  const fs::path image_dir = seq / fmt::format("image_{}", cam_index);
+  const auto files = list_images(image_dir.string());
+  if (files.empty()) throw IoError(fmt::format("{}: no images", image_dir.string()));
+  const std::string times_path = (seq / "times.txt").string();
+  const auto times = read_times(times_path, reporter);
+  if (times.size() != files.size()) {
+    throw DataError(fmt::format("{}: {} timestamps for {} images in {}", times_path, times.size(), files.size(),
+                                image_dir.string()));
+  }
+  if (!o.calibration.empty()) {
+    ds.rig = load_calibration(o.calibration);
+    ds.rig.cameras = {ds.rig.cameras.at(0)};
+  } else {
+    const std::string calib = (seq / "calib.txt").string();
+    LineReader in(calib);
+    std::string line;
+    const std::string key = fmt::format("P{}:", cam_index);
+    std::optional<std::vector<double>> P;
+    while (in.next(line)) {
+      const auto f = split(line, ' ');
+      if (f.empty() || f[0] != key) continue;
+      std::vector<double> v(f.size() - 1);
+      bool ok = f.size() == 13;
+      for (size_t i = 1; ok && i < f.size(); ++i) ok = parse_double(f[i], v[i - 1]);
+      if (!ok) throw IoError(fmt::format("{}:{}: '{}' needs 12 numbers", calib, in.line_number(), key));
+      P = v;
+    }
+    if (!P) throw IoError(fmt::format("{}: no '{}' line", calib, key));
+    CameraCalibration cam;
+    cam.name = fmt::format("cam{}", cam_index);
+    cam.fx = (*P)[0];
+    cam.cx = (*P)[2];
+    cam.fy = (*P)[5];
+    cam.cy = (*P)[6];
+    // P_N = K [I | t_N] with t_N = -baseline * fx on image_1 etc.: camera N sits at x = P[3] / -fx from camera 0.
+    cam.T_RS.translation() = Eigen::Vector3d(-(*P)[3] / cam.fx, -(*P)[7] / cam.fy, -(*P)[11]);
+    const cv::Mat first = read_grey_image(files.front());
+    if (first.empty()) throw IoError(fmt::format("{}: cannot be decoded", files.front()));
+    cam.width = first.cols;
+    cam.height = first.rows;
+    cam.rate_hz = times.size() > 1 ? (static_cast<double>(times.size()) - 1) / to_seconds(times.back() - times.front())
+                                   : 0.0;
+    if (cam.fx <= 0 || cam.fy <= 0) throw ConfigError(fmt::format("{}: '{}' has fx or fy <= 0", calib, key));
+    ds.rig.cameras.push_back(cam);
+  }
+  std::vector<ImageEntry> images;
+  for (size_t i = 0; i < files.size(); ++i) {
+    images.push_back({times[i], 0, files[i], fmt::format("{} (line {} of {})", files[i], i + 1, times_path)});
+  }
+  auto src = std::make_unique<IndexedSource>(std::vector<ImuSample>{}, std::vector<int>{}, "", std::move(images),
+                                             sizes_of(ds.rig), check_options(o, ds.rig));
+  src->add_parse_problems(scratch);
+  ds.source = std::move(src);
+  const fs::path poses = seq.parent_path().parent_path() / "poses" / (seq.filename().string() + ".txt");
+  if (fs::is_regular_file(poses)) {
+    Trajectory gt = read_trajectory(poses.string(), TrajectoryFormat::Kitti);
+    if (gt.poses.size() == times.size()) {
+      for (size_t i = 0; i < times.size(); ++i) gt.poses[i].t = times[i];
+      gt.has_timestamps = true;
+    } else {
+      logger("io")->warn("{}: {} poses for {} images: ground truth kept without timestamps", poses.string(),
+                         gt.poses.size(), times.size());
+    }
+    ds.ground_truth = std::move(gt);
+  }
+  return ds;
+}
+
+// ---------------------------------------------------------------------------------------------- image folder
+
+Dataset open_images(const fs::path& root, const DatasetOptions& o) {
+  Dataset ds;
+  ds.kind = "images";
+  ds.path = root.string();
+  ds.name = root.filename().string();
+  const fs::path dir = fs::is_directory(root / "frames") ? root / "frames" : root;
+  const Rig all =
+      calibration_for(root, o, {"camera.json", "calibration.yaml", "camera.yaml", "sensor.yaml", "camchain.yaml"});
+  ds.rig = all;
+  ds.rig.cameras = {all.cameras.front()};
+  ds.rig.imu.reset();
+  const auto files = list_images(dir.string());
+  if (files.empty()) throw IoError(fmt::format("{}: no image files", dir.string()));
+  SourceStats scratch;
+  BadInputReporter reporter(o.bad_input, scratch);
+  std::vector<ImageEntry> images;
+  const std::string ts = o.timestamps.empty() ? first_existing(root, {"times.txt", "timestamps.txt"}) : o.timestamps;
+  if (!ts.empty() && o.rate_hz <= 0) {
+    // One time per line in seconds, for the images in sorted order; or `time filename` lines.
+    LineReader in(ts);
+    std::string line;
+    size_t k = 0;
+    bool by_index = true;
+    while (in.next(line)) {
+      const std::string_view s = trim(line);
+      if (s.empty() || s.front() == '#') continue;
+      const auto f = split(s, ' ');
+      ImageEntry e;
+      e.listed_at = fmt::format("{}:{}", ts, in.line_number());
+      if (f.empty() || f.size() > 2 || !parse_seconds(f[0], e.t)) {
+        reporter.report(&SourceStats::malformed_lines,
+                        fmt::format("{}: expected 'time[s]' or 'time[s] filename', got '{}'", e.listed_at, line), true);
+        continue;
+      }
+      if (f.size() == 2) {
+        by_index = false;
+        e.path = (dir / std::string(f[1])).string();
+      } else if (k < files.size()) {
+        e.path = files[k];
+      } else {
+        throw DataError(fmt::format("{}: more timestamps than the {} images of {}", e.listed_at, files.size(),
+                                    dir.string()));
+      }
+      ++k;
+      images.push_back(std::move(e));
+    }
+    // With one time per line the times pair with the sorted images by index: the counts must agree, or images
+    // would be dropped (or times invented) silently. With `time filename` lines the list chooses the images.
+    if (by_index && k != files.size()) {
+      throw DataError(fmt::format("{}: {} timestamps for {} images in {}", ts, k, files.size(), dir.string()));
+    }
+  } else {
+    const double rate = o.rate_hz > 0 ? o.rate_hz : ds.rig.cameras.front().rate_hz;
+    if (!(rate > 0)) {
+      throw ConfigError(fmt::format("{}: no timestamps file and no rate: give the rate option", root.string()));
+    }
+    ds.rig.cameras.front().rate_hz = rate;
+    for (size_t i = 0; i < files.size(); ++i) {
+      const auto t = static_cast<TimeNs>(std::llround(static_cast<double>(i) * 1e9 / rate));
+      images.push_back({t, 0, files[i], files[i]});
+    }
+  }
+  auto src = std::make_unique<IndexedSource>(std::vector<ImuSample>{}, std::vector<int>{}, "", std::move(images),
+                                             sizes_of(ds.rig), check_options(o, ds.rig));
+  src->add_parse_problems(scratch);
+  ds.source = std::move(src);
+  return ds;
+}
+
+// ---------------------------------------------------------------------------------------------- video
+
+bool is_video_file(const fs::path& p) {
+  static const char* kExt[] = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".mpg", ".mpeg", ".m4v", ".wmv"};
+  const std::string e = lower(p.extension().string());
+  return std::any_of(std::begin(kExt), std::end(kExt), [&](const char* x) { return e == x; });
+}
+
+Dataset open_video(const fs::path& file, const DatasetOptions& o) {
+  Dataset ds;
+  ds.kind = "video";
+  ds.path = file.string();
+  ds.name = file.stem().string();
+  const fs::path dir = file.parent_path().empty() ? fs::path(".") : file.parent_path();
+  const Rig all = calibration_for(dir, o, {"camera.json", "calibration.yaml", "camera.yaml", "sensor.yaml",
+                                           "camchain.yaml"});
+  ds.rig = all;
+  ds.rig.cameras = {all.cameras.front()};
+  ds.rig.imu.reset();
+  const auto& cam = ds.rig.cameras.front();
+  auto src = std::make_unique<VideoSource>(file.string(), o.rate_hz, 0, cv::Size(cam.width, cam.height), o.bad_input);
+  ds.rig.cameras.front().rate_hz = src->rate_hz();
+  ds.source = std::move(src);
+  return ds;
+}
+
+}  // namespace
+
+std::vector<std::string> list_images(const std::string& folder) {
+  static const char* kExt[] = {".png", ".pgm", ".ppm", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"};
+  if (!fs::is_directory(folder)) throw IoError(fmt::format("{}: folder not found", folder));
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    if (!entry.is_regular_file()) continue;
+    const std::string e = lower(entry.path().extension().string());
+    if (std::any_of(std::begin(kExt), std::end(kExt), [&](const char* x) { return e == x; })) {
+      names.push_back(entry.path().filename().string());
+    }
+  }
+  std::sort(names.begin(), names.end(), natural_less);
+  for (auto& n : names) n = (fs::path(folder) / n).string();
+  return names;
+}
+
+std::string detect_dataset_kind(const std::string& path) {
+  const fs::path p(path);
+  if (fs::is_regular_file(p)) {
+    if (is_video_file(p)) return "video";
+    throw IoError(fmt::format("{}: a file that is not a known video type (mp4, avi, mkv, ...)", path));
+  }
+  if (!fs::is_directory(p)) throw IoError(fmt::format("{}: dataset not found", path));
+  if (fs::is_directory(p / "mav0") || fs::is_regular_file(p / "imu0" / "data.csv") ||
+      fs::is_regular_file(p / "cam0" / "data.csv")) {
+    return "euroc";
+  }
+  if (fs::is_regular_file(p / "rgb.txt")) return "tum";
+  if (fs::is_directory(p / "image_0") && fs::is_regular_file(p / "times.txt")) return "kitti";
+  if (!list_images(fs::is_directory(p / "frames") ? (p / "frames").string() : path).empty()) return "images";
+  throw IoError(fmt::format("{}: cannot tell the dataset kind (no mav0/, rgb.txt, image_0/ + times.txt, or images)",
+                            path));
+}
+
+Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
+  std::string kind;
+  std::string path = spec;
+  const size_t colon = spec.find(':');
+  if (colon != std::string::npos && colon > 1) {  // "euroc:/data/..." (colon > 1 keeps "C:\\..." paths intact)
+    const std::string k = lower(spec.substr(0, colon));
+    if (k == "euroc" || k == "asl" || k == "tum" || k == "kitti" || k == "images" || k == "video") {
+      kind = k == "asl" ? "euroc" : k;
+      path = spec.substr(colon + 1);
+    } else if (!fs::exists(spec)) {
+      throw ConfigError(fmt::format("dataset '{}': unknown kind '{}' (known: euroc, tum, kitti, images, video)", spec,
+                                    k));
+    }
+  }
+  if (kind.empty()) kind = detect_dataset_kind(path);
+  if (!fs::exists(path)) throw IoError(fmt::format("{}: dataset not found", path));
+  const fs::path p = fs::path(path).lexically_normal();
+  const fs::path root = p.has_filename() ? p : p.parent_path();
+  Dataset ds;
+  if (kind == "euroc") {
+    ds = open_euroc(root, options);
+  } else if (kind == "tum") {
+    ds = open_tum(root, options);
+  } else if (kind == "kitti") {
+    ds = open_kitti(root, options);
+  } else if (kind == "images") {
+    ds = open_images(root, options);
+  } else {
+    ds = open_video(root, options);
+  }
+  for (const auto& w : ds.rig.warnings) logger("io")->warn("{}", w);
+  return ds;
+}
+
+}  // namespace rtslam::io

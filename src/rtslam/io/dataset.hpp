@@ -1,0 +1,54 @@
+#pragma once
+// Opening a dataset: "KIND:PATH" or "PATH" (kind auto-detected) -> a measurement Source, the Rig calibration,
+// optional ground truth, and a name. Layouts (details in docs/datasets.md):
+//   euroc   EuRoC / ASL folder (PATH or PATH/mav0 with cam*/data.csv, imu0/data.csv, sensor.yaml files,
+//           optional state_groundtruth_estimate0/data.csv).
+//   tum     TUM RGB-D / mono: rgb.txt (`t path`), optional groundtruth.txt; calibration YAML from the option or
+//           calibration.yaml / camera.yaml / sensor.yaml / camchain.yaml in the folder.
+//   kitti   KITTI odometry sequences/NN: image_0/*.png, times.txt, calib.txt (P0), optional ../../poses/NN.txt.
+//   images  a folder of images (or its frames/ subfolder), sorted by name with numbers compared as numbers;
+//           timestamps from a file (option, or times.txt / timestamps.txt) or a fixed rate; calibration from the
+//           option or camera.json / calibration.yaml / camera.yaml / sensor.yaml / camchain.yaml in the folder.
+//           The MonoSLAM Davison sequence is one: frames/*.pgm + camera.json (give rate 30 Hz, see calibration.hpp).
+//   video   a video file read with OpenCV; calibration from the option or next to the file.
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rtslam/core/trajectory.hpp"
+#include "rtslam/io/calibration.hpp"
+#include "rtslam/io/source.hpp"
+
+namespace rtslam::io {
+
+struct DatasetOptions {
+  BadInputPolicy bad_input = BadInputPolicy::Error;
+  std::vector<int> cameras = {0};  // cameras to stream (EuRoC camN folders / KITTI image_N); the Rig has these only
+  bool use_imu = true;             // stream IMU samples when the dataset has them
+  double rate_hz = 0.0;            // image rate for image folders and videos (0 = from timestamps/calibration/video)
+  std::string calibration;         // calibration file overriding the dataset's own
+  std::string timestamps;          // timestamps file for image folders
+  int max_imu_dropout = 3;         // more missing IMU samples than this in a row is a gap (reported)
+};
+
+struct Dataset {
+  std::string name;  // e.g. "euroc-v101-static"
+  std::string kind;  // "euroc", "tum", "kitti", "images", "video"
+  std::string path;  // the dataset root as opened
+  std::unique_ptr<Source> source;
+  Rig rig;
+  std::optional<Trajectory> ground_truth;  // T_WR of the robot frame (IMU on EuRoC, camera 0 on KITTI/TUM)
+};
+
+/// Detects the kind of a path ("euroc", "tum", "kitti", "images", "video"); throws IoError when it cannot.
+std::string detect_dataset_kind(const std::string& path);
+
+/// Opens "KIND:PATH" or "PATH". Throws IoError/ConfigError/DataError naming the file and the problem.
+Dataset open_dataset(const std::string& spec, const DatasetOptions& options = {});
+
+/// Image files of a folder (png, pgm, ppm, jpg, jpeg, bmp, tif, tiff), sorted by name with digit runs compared
+/// numerically ("img2" before "img10").
+std::vector<std::string> list_images(const std::string& folder);
+
+}  // namespace rtslam::io

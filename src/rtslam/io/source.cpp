@@ -1,0 +1,286 @@
+#include "rtslam/io/source.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
+#include "rtslam/io/text.hpp"
+
+namespace rtslam::io {
+namespace fs = std::filesystem;
+
+TimeNs time_of(const Measurement& m) {
+  return std::visit([](const auto& x) { return x.t; }, m);
+}
+
+BadInputPolicy bad_input_policy_from_string(const std::string& s, const std::string& where) {
+  if (s == "error") return BadInputPolicy::Error;
+  if (s == "skip") return BadInputPolicy::Skip;
+  throw ConfigError(fmt::format("{} = '{}' must be 'error' or 'skip'", where, s));
+}
+
+std::size_t SourceStats::problems() const {
+  return backwards_timestamps + duplicate_timestamps + imu_gaps + non_finite + malformed_lines + missing_images +
+         undecodable_images + wrong_size_images;
+}
+
+namespace {
+
+struct Counter {
+  std::size_t SourceStats::*field;
+  const char* singular;
+  const char* plural;
+  const char* key;
+};
+
+constexpr Counter kCounters[] = {
+    {&SourceStats::backwards_timestamps, "backwards timestamp", "backwards timestamps", "backwards_timestamps"},
+    {&SourceStats::duplicate_timestamps, "duplicate timestamp", "duplicate timestamps", "duplicate_timestamps"},
+    {&SourceStats::imu_gaps, "IMU gap", "IMU gaps", "imu_gaps"},
+    {&SourceStats::non_finite, "non-finite value", "non-finite values", "non_finite"},
+    {&SourceStats::malformed_lines, "malformed line", "malformed lines", "malformed_lines"},
+    {&SourceStats::missing_images, "missing image", "missing images", "missing_images"},
+    {&SourceStats::undecodable_images, "undecodable image", "undecodable images", "undecodable_images"},
+    {&SourceStats::wrong_size_images, "wrong-size image", "wrong-size images", "wrong_size_images"},
+};
+
+}  // namespace
+
+void SourceStats::add_problems(const SourceStats& other) {
+  for (const auto& c : kCounters) this->*c.field += other.*c.field;
+  for (const auto& m : other.messages) {
+    if (messages.size() < kMaxMessages) messages.push_back(m);
+  }
+}
+
+std::string SourceStats::summary() const {
+  std::string s = fmt::format("{} images, {} IMU samples", images, imu_samples);
+  std::string problems_text;
+  for (const auto& c : kCounters) {
+    const std::size_t n = this->*c.field;
+    if (n == 0) continue;
+    problems_text += fmt::format("{}{} {}", problems_text.empty() ? "" : ", ", n, n == 1 ? c.singular : c.plural);
+  }
+  if (!problems_text.empty()) s += "; bad input (skipped or noted): " + problems_text;
+  return s;
+}
+
+nlohmann::json SourceStats::to_json() const {
+  nlohmann::json j;
+  j["images"] = images;
+  j["imu_samples"] = imu_samples;
+  for (const auto& c : kCounters) j[c.key] = this->*c.field;
+  j["messages"] = messages;
+  return j;
+}
+
+void BadInputReporter::report(std::size_t SourceStats::*counter, const std::string& message, bool file_problem) {
+  if (policy_ == BadInputPolicy::Error) {
+    if (file_problem) throw IoError(message);
+    throw DataError(message);
+  }
+  ++(stats_->*counter);
+  const std::size_t n = stats_->problems();
+  if (stats_->messages.size() < SourceStats::kMaxMessages) stats_->messages.push_back(message);
+  if (n <= 20) {
+    logger("io")->warn("skipped: {}", message);
+  } else {
+    logger("io")->debug("skipped: {}", message);
+  }
+}
+
+cv::Mat read_grey_image(const std::string& path) {
+  // imread logs decoder errors (e.g. libpng "Read Error") itself; we report the failure with the file name.
+  cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  if (!img.empty() && img.type() != CV_8UC1) img.convertTo(img, CV_8UC1);
+  return img;
+}
+
+namespace {
+
+std::string imu_location(const std::string& where, const std::vector<int>& lines, std::size_t i, TimeNs t) {
+  if (!where.empty() && i < lines.size()) return fmt::format("{}:{}", where, lines[i]);
+  if (!where.empty()) return fmt::format("{} (t = {} s)", where, format_seconds(t));
+  return fmt::format("IMU sample at t = {} s", format_seconds(t));
+}
+
+}  // namespace
+
+IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_lines, std::string imu_where,
+                             std::vector<ImageEntry> images, std::vector<cv::Size> image_sizes,
+                             const StreamCheckOptions& options)
+    : reporter_(options.policy, stats_), image_sizes_(std::move(image_sizes)) {
+  // IMU: finite values, strictly increasing time, no long dropouts.
+  double period_s = options.imu_rate_hz > 0 ? 1.0 / options.imu_rate_hz : 0.0;
+  if (period_s == 0.0 && imu.size() > 2) {
+    std::vector<TimeNs> dts;
+    for (std::size_t i = 1; i < imu.size(); ++i) dts.push_back(imu[i].t - imu[i - 1].t);
+    std::nth_element(dts.begin(), dts.begin() + static_cast<std::ptrdiff_t>(dts.size() / 2), dts.end());
+    period_s = to_seconds(std::max<TimeNs>(dts[dts.size() / 2], 1));
+  }
+  imu_.reserve(imu.size());
+  for (std::size_t i = 0; i < imu.size(); ++i) {
+    const ImuSample& s = imu[i];
+    if (!s.gyro.allFinite() || !s.accel.allFinite()) {
+      reporter_.report(&SourceStats::non_finite,
+                       fmt::format("{}: non-finite IMU value at t = {} s", imu_location(imu_where, imu_lines, i, s.t),
+                                   format_seconds(s.t)));
+      continue;
+    }
+    if (!imu_.empty()) {
+      const TimeNs prev = imu_.back().t;
+      if (s.t == prev) {
+        reporter_.report(&SourceStats::duplicate_timestamps,
+                         fmt::format("{}: duplicate IMU timestamp {} s", imu_location(imu_where, imu_lines, i, s.t),
+                                     format_seconds(s.t)));
+        continue;
+      }
+      if (s.t < prev) {
+        reporter_.report(&SourceStats::backwards_timestamps,
+                         fmt::format("{}: IMU timestamp {} s goes backwards (previous {} s)",
+                                     imu_location(imu_where, imu_lines, i, s.t), format_seconds(s.t),
+                                     format_seconds(prev)));
+        continue;
+      }
+      if (period_s > 0) {
+        const double missing = std::round(to_seconds(s.t - prev) / period_s) - 1.0;
+        if (missing > options.max_imu_dropout) {
+          reporter_.report(&SourceStats::imu_gaps,
+                           fmt::format("{}: IMU gap of {:.3f} s before t = {} s (~{} samples missing, more than {})",
+                                       imu_location(imu_where, imu_lines, i, s.t), to_seconds(s.t - prev),
+                                       format_seconds(s.t), static_cast<long long>(missing), options.max_imu_dropout));
+          // Nothing to drop for a gap: the sample after it is kept.
+        }
+      }
+    }
+    imu_.push_back(s);
+  }
+
+  // Images: per camera strictly increasing time, files present.
+  std::vector<TimeNs> last_t;
+  std::vector<bool> seen_camera;
+  images_.reserve(images.size());
+  for (auto& e : images) {
+    if (e.camera < 0) throw InvariantError(fmt::format("{}: negative camera index", e.listed_at));
+    const auto c = static_cast<std::size_t>(e.camera);
+    if (c >= last_t.size()) {
+      last_t.resize(c + 1, 0);
+      seen_camera.resize(c + 1, false);
+    }
+    TimeNs& prev = last_t[c];
+    const bool seen = seen_camera[c];
+    if (seen && e.t == prev) {
+      reporter_.report(&SourceStats::duplicate_timestamps,
+                       fmt::format("{}: duplicate image timestamp {} s", e.listed_at, format_seconds(e.t)));
+      continue;
+    }
+    if (seen && e.t < prev) {
+      reporter_.report(&SourceStats::backwards_timestamps,
+                       fmt::format("{}: image timestamp {} s goes backwards (previous {} s)", e.listed_at,
+                                   format_seconds(e.t), format_seconds(prev)));
+      continue;
+    }
+    if (options.check_files && !fs::is_regular_file(e.path)) {
+      reporter_.report(&SourceStats::missing_images, fmt::format("{}: image file {} not found", e.listed_at, e.path),
+                       true);
+      continue;
+    }
+    prev = e.t;
+    seen_camera[c] = true;
+    images_.push_back(std::move(e));
+  }
+
+  // Merge: by time, IMU before images at equal times, then by camera.
+  order_.reserve(imu_.size() + images_.size());
+  for (std::size_t i = 0; i < imu_.size(); ++i) order_.push_back({imu_[i].t, 0, i});
+  for (std::size_t i = 0; i < images_.size(); ++i) order_.push_back({images_[i].t, 1 + images_[i].camera, i});
+  std::stable_sort(order_.begin(), order_.end(),
+                   [](const Item& a, const Item& b) { return a.t != b.t ? a.t < b.t : a.kind < b.kind; });
+}
+
+std::optional<Measurement> IndexedSource::next() {
+  while (pos_ < order_.size()) {
+    const Item item = order_[pos_++];
+    if (item.kind == 0) {
+      ++stats_.imu_samples;
+      return imu_[item.index];
+    }
+    ImageEntry& e = images_[item.index];
+    ImageFrame frame;
+    frame.t = e.t;
+    frame.camera = e.camera;
+    frame.path = e.path;
+    frame.image = read_grey_image(e.path);
+    if (frame.image.empty()) {
+      const bool missing = !fs::exists(e.path);
+      reporter_.report(missing ? &SourceStats::missing_images : &SourceStats::undecodable_images,
+                       fmt::format("{}: image {} {}", e.listed_at, e.path,
+                                   missing ? "not found" : "cannot be decoded (truncated or not an image)"),
+                       true);
+      continue;
+    }
+    const auto c = static_cast<std::size_t>(e.camera);
+    if (c < image_sizes_.size() && image_sizes_[c].area() > 0 && frame.image.size() != image_sizes_[c]) {
+      reporter_.report(&SourceStats::wrong_size_images,
+                       fmt::format("{}: image {} is {}x{}, the calibration of camera {} says {}x{}", e.listed_at,
+                                   e.path, frame.image.cols, frame.image.rows, e.camera, image_sizes_[c].width,
+                                   image_sizes_[c].height));
+      continue;
+    }
+    ++stats_.images;
+    return frame;
+  }
+  return std::nullopt;
+}
+
+VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size,
+                         BadInputPolicy policy)
+    : path_(path), rate_hz_(rate_hz), t0_(t0), expected_size_(expected_size), reporter_(policy, stats_) {
+  if (!fs::is_regular_file(path)) throw IoError(fmt::format("{}: file not found", path));
+  capture_ = std::make_unique<cv::VideoCapture>(path);
+  if (!capture_->isOpened()) throw IoError(fmt::format("{}: cannot open the video (unknown format or codec)", path));
+  if (rate_hz_ <= 0) rate_hz_ = capture_->get(cv::CAP_PROP_FPS);
+  if (!(rate_hz_ > 0) || !std::isfinite(rate_hz_)) {
+    throw ConfigError(fmt::format("{}: the video does not state its frame rate: give the rate option", path));
+  }
+  const double n = capture_->get(cv::CAP_PROP_FRAME_COUNT);
+  if (n > 0 && std::isfinite(n)) frame_count_ = static_cast<std::size_t>(n);
+}
+
+VideoSource::~VideoSource() = default;
+
+std::optional<Measurement> VideoSource::next() {
+  while (true) {
+    cv::Mat raw;
+    if (!capture_->read(raw) || raw.empty()) return std::nullopt;
+    const std::size_t i = index_++;
+    ImageFrame frame;
+    frame.t = t0_ + static_cast<TimeNs>(std::llround(static_cast<double>(i) * 1e9 / rate_hz_));
+    frame.path = fmt::format("{}#{}", path_, i);
+    if (raw.channels() == 3) {
+      cv::cvtColor(raw, frame.image, cv::COLOR_BGR2GRAY);
+    } else if (raw.channels() == 4) {
+      cv::cvtColor(raw, frame.image, cv::COLOR_BGRA2GRAY);
+    } else {
+      frame.image = raw;
+    }
+    if (frame.image.depth() != CV_8U) frame.image.convertTo(frame.image, CV_8U);
+    if (expected_size_.area() > 0 && frame.image.size() != expected_size_) {
+      reporter_.report(&SourceStats::wrong_size_images,
+                       fmt::format("{}: frame is {}x{}, the calibration says {}x{}", frame.path, frame.image.cols,
+                                   frame.image.rows, expected_size_.width, expected_size_.height));
+      continue;
+    }
+    ++stats_.images;
+    return frame;
+  }
+}
+
+}  // namespace rtslam::io

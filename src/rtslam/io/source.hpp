@@ -1,0 +1,173 @@
+#pragma once
+// The measurement stream: every input (dataset reader, video, simulator) becomes one time-ordered sequence of
+// measurements. At equal timestamps IMU samples come before images, and images by camera index.
+//
+// Bad input (timestamps that go backwards, duplicates, IMU dropouts, NaNs, malformed lines, missing or undecodable
+// images) is reported with the file and line or timestamp. The policy chooses between stopping with an error
+// (default: DataError for bad values, IoError for bad files) and skipping the offending item, counted in
+// SourceStats. Nothing is dropped silently: every skip is counted and its message kept (the first 100) and logged.
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "rtslam/core/time.hpp"
+
+namespace cv {
+class VideoCapture;
+}
+
+namespace rtslam::io {
+
+/// One IMU reading in the IMU frame: angular rate [rad/s] and specific force [m/s^2].
+struct ImuSample {
+  TimeNs t = 0;
+  Eigen::Vector3d gyro = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel = Eigen::Vector3d::Zero();
+};
+
+/// One camera image, decoded when the stream reaches it.
+struct ImageFrame {
+  TimeNs t = 0;
+  int camera = 0;     // index into Rig::cameras
+  cv::Mat image;      // CV_8UC1
+  std::string path;   // file it came from ("video.mp4#123" for video frames)
+};
+
+using Measurement = std::variant<ImuSample, ImageFrame>;
+
+/// The timestamp of a measurement.
+TimeNs time_of(const Measurement& m);
+
+enum class BadInputPolicy { Error, Skip };
+
+/// Parses "error" / "skip" (ConfigError naming `where` otherwise).
+BadInputPolicy bad_input_policy_from_string(const std::string& s, const std::string& where = "bad_input");
+
+/// What a source yielded and what it skipped (with the Skip policy) or noticed.
+struct SourceStats {
+  std::size_t images = 0;       // image frames yielded
+  std::size_t imu_samples = 0;  // IMU samples yielded
+  // Problems, each counted once (with Skip, the offending item was dropped, except gaps: nothing to drop).
+  std::size_t backwards_timestamps = 0;
+  std::size_t duplicate_timestamps = 0;
+  std::size_t imu_gaps = 0;  // dropouts longer than the allowed number of samples
+  std::size_t non_finite = 0;
+  std::size_t malformed_lines = 0;
+  std::size_t missing_images = 0;
+  std::size_t undecodable_images = 0;
+  std::size_t wrong_size_images = 0;
+  std::vector<std::string> messages;  // the first kMaxMessages problem messages
+
+  static constexpr std::size_t kMaxMessages = 100;
+  std::size_t problems() const;
+  /// Adds the problem counters and messages of `other` (e.g. problems met while parsing, before streaming).
+  void add_problems(const SourceStats& other);
+  /// One line, e.g. "95 images, 29120 IMU samples; skipped: 2 duplicate timestamps, 1 undecodable image".
+  std::string summary() const;
+  nlohmann::json to_json() const;
+};
+
+/// Counts a problem in `stats` under `counter` and applies the policy: throws (IoError when `file_problem`, else
+/// DataError) with `message` under Error; logs a warning (the first 20, then debug) and records it under Skip.
+class BadInputReporter {
+ public:
+  BadInputReporter(BadInputPolicy policy, SourceStats& stats) : policy_(policy), stats_(&stats) {}
+  void report(std::size_t SourceStats::*counter, const std::string& message, bool file_problem = false);
+  BadInputPolicy policy() const { return policy_; }
+
+ private:
+  BadInputPolicy policy_;
+  SourceStats* stats_;
+};
+
+/// A time-ordered stream of measurements.
+class Source {
+ public:
+  virtual ~Source() = default;
+  /// The next measurement, or nullopt at the end. Throws under the Error policy when it meets bad input.
+  virtual std::optional<Measurement> next() = 0;
+  virtual const SourceStats& stats() const = 0;
+  /// Number of images the stream will yield, when known (for progress and ETA).
+  virtual std::optional<std::size_t> image_count() const { return std::nullopt; }
+};
+
+/// An image not yet decoded: time, camera, file and where it was listed (for messages).
+struct ImageEntry {
+  TimeNs t = 0;
+  int camera = 0;
+  std::string path;
+  std::string listed_at;  // "cam0/data.csv:12", or the path itself
+};
+
+/// Options of the per-stream checks.
+struct StreamCheckOptions {
+  BadInputPolicy policy = BadInputPolicy::Error;
+  double imu_rate_hz = 0.0;    // nominal IMU rate; 0 = take the median interval
+  int max_imu_dropout = 3;     // more missing samples than this in a row is a gap
+  bool check_files = true;     // check at open time that every image file exists
+};
+
+/// A stream built from in-memory IMU samples and a list of image files (decoded lazily). The constructor checks
+/// each stream (order, duplicates, gaps, missing files) and merges them in time order. Every reader except video
+/// builds one of these; the simulator can too.
+class IndexedSource : public Source {
+ public:
+  /// `imu_lines[i]` / `imu_where` locate sample i for messages (may be empty). `image_sizes[c]` is the expected
+  /// width/height of camera c (0x0 = unchecked).
+  IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_lines, std::string imu_where,
+                std::vector<ImageEntry> images, std::vector<cv::Size> image_sizes, const StreamCheckOptions& options);
+  std::optional<Measurement> next() override;
+  const SourceStats& stats() const override { return stats_; }
+  std::optional<std::size_t> image_count() const override { return images_.size(); }
+  /// Merges problems a reader met while parsing its lists (they count in stats()).
+  void add_parse_problems(const SourceStats& parse_stats) { stats_.add_problems(parse_stats); }
+
+ private:
+  struct Item {
+    TimeNs t;
+    int kind;  // 0 = IMU, 1 + camera = image
+    std::size_t index;
+  };
+  SourceStats stats_;
+  BadInputReporter reporter_;
+  std::vector<ImuSample> imu_;
+  std::vector<ImageEntry> images_;
+  std::vector<cv::Size> image_sizes_;
+  std::vector<Item> order_;
+  std::size_t pos_ = 0;
+};
+
+/// A video file read with OpenCV. Frame i has t = t0 + i / rate (rate from the option, else the container's fps).
+/// Frames are converted to grey.
+class VideoSource : public Source {
+ public:
+  VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size, BadInputPolicy policy);
+  ~VideoSource() override;
+  std::optional<Measurement> next() override;
+  const SourceStats& stats() const override { return stats_; }
+  std::optional<std::size_t> image_count() const override { return frame_count_; }
+  double rate_hz() const { return rate_hz_; }
+
+ private:
+  std::string path_;
+  double rate_hz_ = 0.0;
+  TimeNs t0_ = 0;
+  cv::Size expected_size_;
+  SourceStats stats_;
+  BadInputReporter reporter_;
+  std::unique_ptr<cv::VideoCapture> capture_;
+  std::size_t index_ = 0;
+  std::optional<std::size_t> frame_count_;
+};
+
+/// Reads an image file as 8-bit grey; an empty Mat if it is missing or cannot be decoded.
+cv::Mat read_grey_image(const std::string& path);
+
+}  // namespace rtslam::io

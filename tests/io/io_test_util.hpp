@@ -1,0 +1,61 @@
+#pragma once
+// Helpers for the io tests: a per-test temporary directory, small file writers, and dataset paths.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace rtslam::io::test {
+
+/// A fresh directory under the system temp dir, removed at the end of the test.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const std::string name = std::string("rtslam_io_") + info->test_suite_name() + "_" + info->name() + "_" +
+                             std::to_string(::getpid());
+    path_ = std::filesystem::temp_directory_path() / name;
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  std::string operator/(const std::string& rel) const { return (path_ / rel).string(); }
+  std::string str() const { return path_.string(); }
+
+ private:
+  std::filesystem::path path_;
+};
+
+inline void write_text(const std::string& path, const std::string& text) {
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  std::ofstream out(path);
+  out << text;
+}
+
+inline std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+inline std::string euroc_dir() { return RTSLAM_SOURCE_DIR "/../shared/datasets/euroc-v101-static"; }
+inline std::string monoslam_dir() { return RTSLAM_SOURCE_DIR "/../shared/datasets/monoslam-davison"; }
+
+}  // namespace rtslam::io::test
+
+/// Expects `statement` to throw `type` whose what() contains `needle`.
+#define EXPECT_THROW_WITH(statement, type, needle)                                                  \
+  do {                                                                                              \
+    try {                                                                                           \
+      statement;                                                                                    \
+      ADD_FAILURE() << "expected " #type " containing '" << (needle) << "'";                        \
+    } catch (const type& e) {                                                                       \
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << "message: " << e.what(); \
+    }                                                                                               \
+  } while (false)

@@ -1,0 +1,247 @@
+#include "rtslam/io/dataset.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "io_test_util.hpp"
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/random.hpp"
+#include "rtslam/io/trajectory_io.hpp"
+#include "rtslam/io/writers.hpp"
+
+namespace rtslam::io {
+namespace {
+
+namespace fs = std::filesystem;
+using test::TempDir;
+using test::write_text;
+
+struct Drained {
+  std::vector<ImuSample> imu;
+  std::vector<ImageFrame> images;  // pixels dropped unless asked for, to keep memory small
+  std::vector<cv::Size> sizes;     // image sizes
+  std::vector<TimeNs> order;       // all timestamps in stream order
+  std::vector<int> kinds;          // 0 IMU, 1 image
+};
+
+Drained drain(Source& src, bool keep_pixels = false) {
+  Drained d;
+  while (auto m = src.next()) {
+    d.order.push_back(time_of(*m));
+    if (auto* imu = std::get_if<ImuSample>(&*m)) {
+      d.imu.push_back(*imu);
+      d.kinds.push_back(0);
+    } else {
+      auto& img = std::get<ImageFrame>(*m);
+      EXPECT_EQ(img.image.type(), CV_8UC1) << img.path;
+      d.sizes.push_back(img.image.size());
+      if (!keep_pixels) img.image.release();
+      d.images.push_back(std::move(img));
+      d.kinds.push_back(1);
+    }
+  }
+  return d;
+}
+
+void expect_time_ordered_imu_first(const Drained& d) {
+  for (size_t i = 1; i < d.order.size(); ++i) {
+    ASSERT_LE(d.order[i - 1], d.order[i]) << "at " << i;
+    if (d.order[i - 1] == d.order[i]) {
+      ASSERT_LE(d.kinds[i - 1], d.kinds[i]) << "IMU must come first at " << i;
+    }
+  }
+}
+
+TEST(Dataset, ReadsEurocV101Static) {
+  if (!fs::exists(test::euroc_dir())) GTEST_SKIP() << "dataset euroc-v101-static not found";
+  Dataset ds = open_dataset(test::euroc_dir());
+  EXPECT_EQ(ds.kind, "euroc");
+  EXPECT_EQ(ds.name, "euroc-v101-static");
+  ASSERT_EQ(ds.rig.cameras.size(), 1u);
+  EXPECT_DOUBLE_EQ(ds.rig.cameras[0].fx, 458.654);
+  EXPECT_DOUBLE_EQ(ds.rig.cameras[0].T_RS.translation().x(), -0.0216401454975);
+  ASSERT_TRUE(ds.rig.imu.has_value());
+  EXPECT_DOUBLE_EQ(ds.rig.imu->gyro_noise_density, 1.6968e-04);
+  ASSERT_TRUE(ds.ground_truth.has_value());
+  EXPECT_EQ(ds.ground_truth->poses.size(), 2895u);
+  EXPECT_EQ(ds.source->image_count(), 95u);
+  const Drained d = drain(*ds.source);
+  EXPECT_EQ(d.images.size(), 95u);
+  EXPECT_EQ(d.imu.size(), 29120u);
+  EXPECT_EQ(ds.source->stats().images, 95u);
+  EXPECT_EQ(ds.source->stats().imu_samples, 29120u);
+  EXPECT_EQ(ds.source->stats().problems(), 0u);
+  expect_time_ordered_imu_first(d);
+  EXPECT_EQ(d.images.front().t, 1403715273262142976);
+  EXPECT_EQ(d.images.back().t, 1403715277962142976);
+  EXPECT_EQ(d.sizes.front(), cv::Size(752, 480));
+  EXPECT_EQ(d.imu.front().t, 1403715273262142976);
+  EXPECT_EQ(d.kinds.front(), 0);  // the first IMU sample shares the first image's time and comes first
+  EXPECT_DOUBLE_EQ(d.imu.front().accel.x(), 9.0874956666666655);
+  EXPECT_DOUBLE_EQ(d.imu.front().gyro.z(), 0.07749261878854824);
+}
+
+TEST(Dataset, EurocStereoReportsTheRealMissingCam1Images) {
+  // cam1/data.csv of this excerpt lists 99 images but only 95 files exist: a real missing-image case.
+  if (!fs::exists(test::euroc_dir())) GTEST_SKIP() << "dataset euroc-v101-static not found";
+  DatasetOptions o;
+  o.cameras = {0, 1};
+  o.use_imu = false;
+  EXPECT_THROW_WITH(open_dataset("euroc:" + test::euroc_dir() + "/mav0", o), IoError,
+                    "cam1/data.csv:97: image file");
+  o.bad_input = BadInputPolicy::Skip;
+  Dataset ds = open_dataset("euroc:" + test::euroc_dir() + "/mav0", o);
+  ASSERT_EQ(ds.rig.cameras.size(), 2u);
+  EXPECT_DOUBLE_EQ(ds.rig.cameras[1].fx, 457.587);
+  const Drained d = drain(*ds.source);
+  EXPECT_EQ(d.images.size(), 190u);
+  EXPECT_TRUE(d.imu.empty());
+  EXPECT_EQ(ds.source->stats().missing_images, 4u);
+  EXPECT_NE(ds.source->stats().summary().find("4 missing images"), std::string::npos);
+}
+
+TEST(Dataset, ReadsMonoSlamSequenceAsImageFolder) {
+  if (!fs::exists(test::monoslam_dir())) GTEST_SKIP() << "dataset monoslam-davison not found";
+  DatasetOptions o;
+  o.rate_hz = 30.0;  // the sequence's real rate (camera.json says 25)
+  Dataset ds = open_dataset(test::monoslam_dir(), o);
+  EXPECT_EQ(ds.kind, "images");
+  ASSERT_EQ(ds.rig.cameras.size(), 1u);
+  EXPECT_EQ(ds.rig.cameras[0].distortion, DistortionModel::MonoSlamOneParam);
+  EXPECT_DOUBLE_EQ(ds.rig.cameras[0].rate_hz, 30.0);
+  EXPECT_FALSE(ds.rig.imu.has_value());
+  EXPECT_FALSE(ds.ground_truth.has_value());
+  const Drained d = drain(*ds.source);
+  ASSERT_EQ(d.images.size(), 1000u);
+  EXPECT_EQ(d.sizes[0], cv::Size(320, 240));
+  EXPECT_NE(d.images[0].path.find("rawoutput0000.pgm"), std::string::npos);
+  EXPECT_NE(d.images[999].path.find("rawoutput0999.pgm"), std::string::npos);
+  EXPECT_EQ(d.images[999].t, 33'300'000'000);  // 999 / 30 s
+  // Without the option the file's 25 Hz is used.
+  Dataset ds25 = open_dataset("images:" + test::monoslam_dir());
+  EXPECT_DOUBLE_EQ(ds25.rig.cameras[0].rate_hz, 25.0);
+}
+
+const char* kSmallRig =
+    "cameras:\n  - name: cam0\n    width: 8\n    height: 6\n    rate_hz: 30\n    intrinsics: [10, 10, 4, 3]\n";
+
+TEST(Dataset, ReadsTumLayout) {
+  TempDir dir;
+  write_text(dir / "calibration.yaml", kSmallRig);
+  for (int i = 0; i < 3; ++i) {
+    cv::Mat bgr(6, 8, CV_8UC3, cv::Scalar(10 * i, 20 * i, 30 * i));
+    fs::create_directories(dir / "rgb");
+    cv::imwrite(dir / ("rgb/" + std::to_string(i) + ".png"), bgr);
+  }
+  write_text(dir / "rgb.txt",
+             "# color images\n# file: 'rgbd_dataset_freiburg1_xyz.bag'\n# timestamp filename\n"
+             "1305031102.175304 rgb/0.png\n1305031102.211214 rgb/1.png\n1305031102.243211 rgb/2.png\n");
+  write_text(dir / "groundtruth.txt",
+             "# ground truth trajectory\n# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 "
+             "0.6126 -0.2949 -0.3248\n");
+  Dataset ds = open_dataset(dir.str());
+  EXPECT_EQ(ds.kind, "tum");
+  ASSERT_TRUE(ds.ground_truth.has_value());
+  EXPECT_EQ(ds.ground_truth->poses.size(), 1u);
+  const Drained d = drain(*ds.source, true);
+  ASSERT_EQ(d.images.size(), 3u);
+  EXPECT_EQ(d.images[1].t, 1305031102211214000);
+  // Converted to grey with OpenCV's weights: 0.299 R + 0.587 G + 0.114 B for (B, G, R) = (20, 40, 60).
+  EXPECT_NEAR(d.images[2].image.at<uint8_t>(0, 0), 0.299 * 60 + 0.587 * 40 + 0.114 * 20, 1.0);
+}
+
+TEST(Dataset, ReadsKittiLayout) {
+  TempDir dir;
+  const std::string seq = dir / "sequences/04";
+  fs::create_directories(seq + "/image_0");
+  for (int i = 0; i < 4; ++i) {
+    cv::imwrite(fmt::format("{}/image_0/{:06d}.png", seq, i), cv::Mat(6, 8, CV_8UC1, cv::Scalar(i)));
+  }
+  write_text(seq + "/times.txt", "0.000000e+00\n1.036070e-01\n2.072140e-01\n3.108210e-01\n");
+  write_text(seq + "/calib.txt",
+             "P0: 7.070912e+02 0.000000e+00 6.018873e+02 0.000000e+00 0.000000e+00 7.070912e+02 1.831104e+02 "
+             "0.000000e+00 0.000000e+00 0.000000e+00 1.000000e+00 0.000000e+00\n"
+             "P1: 7.070912e+02 0.000000e+00 6.018873e+02 -3.798145e+02 0.000000e+00 7.070912e+02 1.831104e+02 "
+             "0.000000e+00 0.000000e+00 0.000000e+00 1.000000e+00 0.000000e+00\n");
+  std::string poses;
+  for (int i = 0; i < 4; ++i) poses += fmt::format("1 0 0 0 0 1 0 0 0 0 1 {}\n", 0.8 * i);
+  write_text(dir / "poses/04.txt", poses);
+  Dataset ds = open_dataset(seq);
+  EXPECT_EQ(ds.kind, "kitti");
+  ASSERT_EQ(ds.rig.cameras.size(), 1u);
+  EXPECT_DOUBLE_EQ(ds.rig.cameras[0].fx, 707.0912);
+  EXPECT_DOUBLE_EQ(ds.rig.cameras[0].cy, 183.1104);
+  EXPECT_EQ(ds.rig.cameras[0].width, 8);
+  ASSERT_TRUE(ds.ground_truth.has_value());
+  EXPECT_TRUE(ds.ground_truth->has_timestamps);
+  EXPECT_EQ(ds.ground_truth->poses[3].t, 310'821'000);
+  EXPECT_DOUBLE_EQ(ds.ground_truth->poses[3].p_WR.z(), 2.4);
+  const Drained d = drain(*ds.source, true);
+  ASSERT_EQ(d.images.size(), 4u);
+  EXPECT_EQ(d.images[2].t, 207'214'000);
+  EXPECT_EQ(d.images[2].image.at<uint8_t>(0, 0), 2);
+  // The right camera: its baseline comes from P1.
+  DatasetOptions o;
+  o.cameras = {1};
+  fs::create_directories(seq + "/image_1");
+  for (int i = 0; i < 4; ++i) cv::imwrite(fmt::format("{}/image_1/{:06d}.png", seq, i), cv::Mat(6, 8, CV_8UC1));
+  Dataset right = open_dataset("kitti:" + seq, o);
+  EXPECT_NEAR(right.rig.cameras[0].T_RS.translation().x(), 0.537150, 1e-6);
+}
+
+TEST(Dataset, ImageFolderWithTimestampsUsesNaturalOrder) {
+  TempDir dir;
+  write_text(dir / "camera.yaml", kSmallRig);
+  for (int i : {1, 2, 10}) cv::imwrite(dir / fmt::format("img{}.png", i), cv::Mat(6, 8, CV_8UC1, cv::Scalar(i)));
+  write_text(dir / "times.txt", "# seconds\n0.5\n0.6\n0.75\n");
+  Dataset ds = open_dataset(dir.str());
+  EXPECT_EQ(ds.kind, "images");
+  const Drained d = drain(*ds.source, true);
+  ASSERT_EQ(d.images.size(), 3u);
+  EXPECT_EQ(d.images[2].image.at<uint8_t>(0, 0), 10);  // img10 after img2
+  EXPECT_EQ(d.images[2].t, 750'000'000);
+  // A timestamps file with fewer lines than images is an error, not a silent drop.
+  write_text(dir / "times.txt", "0.5\n0.6\n");
+  EXPECT_THROW_WITH(open_dataset(dir.str()), DataError, "2 timestamps for 3 images");
+  // No timestamps and no rate anywhere.
+  fs::remove(dir / "times.txt");
+  write_text(dir / "camera.yaml",
+             "cameras:\n  - name: cam0\n    width: 8\n    height: 6\n    intrinsics: [10, 10, 4, 3]\n");
+  EXPECT_THROW_WITH(open_dataset(dir.str()), ConfigError, "give the rate option");
+}
+
+TEST(Dataset, ReadsVideoFile) {
+  TempDir dir;
+  const std::string video = dir / "clip.avi";
+  {
+    cv::VideoWriter w(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 15.0, cv::Size(64, 48), true);
+    if (!w.isOpened()) GTEST_SKIP() << "OpenCV cannot write MJPG video here";
+    for (int i = 0; i < 5; ++i) w.write(cv::Mat(48, 64, CV_8UC3, cv::Scalar(40 * i, 40 * i, 40 * i)));
+  }
+  write_text(dir / "calibration.yaml",
+             "cameras:\n  - name: cam0\n    width: 64\n    height: 48\n    intrinsics: [50, 50, 32, 24]\n");
+  Dataset ds = open_dataset(video);
+  EXPECT_EQ(ds.kind, "video");
+  EXPECT_DOUBLE_EQ(ds.rig.cameras[0].rate_hz, 15.0);
+  const Drained d = drain(*ds.source, true);
+  ASSERT_EQ(d.images.size(), 5u);
+  EXPECT_EQ(d.images[3].t, 200'000'000);
+  EXPECT_NEAR(d.images[3].image.at<uint8_t>(10, 10), 120, 6);  // MJPG is lossy
+}
+
+TEST(Dataset, UnknownKindsAndPathsAreErrors) {
+  TempDir dir;
+  EXPECT_THROW_WITH(open_dataset(dir / "nope"), IoError, "nope: dataset not found");
+  EXPECT_THROW_WITH(open_dataset("rosbag:" + dir / "x.bag"), ConfigError, "unknown kind 'rosbag'");
+  EXPECT_THROW_WITH(open_dataset(dir.str()), IoError, "cannot tell the dataset kind");
+  write_text(dir / "a.png", "");
+  write_text(dir / "data.txt", "1");
+  EXPECT_THROW_WITH(open_dataset(dir / "data.txt"), IoError, "not a known video type");
+  EXPECT_THROW_WITH(open_dataset(dir.str()), IoError, "no calibration file found");
+}
+
+}  // namespace
+}  // namespace rtslam::io

@@ -118,7 +118,7 @@ void register_run(CLI::App& app) {
   auto opts = std::make_shared<RunOptions>();
   auto* sub = app.add_subcommand("run", "Run SLAM on a dataset, or on the built-in simulated demo (no --dataset)");
   sub->add_option("--dataset", opts->dataset, "KIND:PATH of a dataset (not yet supported: the demo runs without it)");
-  sub->add_option("--config", opts->config, "YAML configuration (see docs/configuration.md); an output folder's "
+  sub->add_option("--config", opts->config, "YAML configuration (see docs/demo.md); an output folder's "
                                             "config.yaml reproduces its run");
   sub->add_flag("--dump-config", opts->dump_config, "Print the effective configuration and exit");
   sub->add_option("--out", opts->out, "Output folder")->capture_default_str();

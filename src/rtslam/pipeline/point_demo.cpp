@@ -35,6 +35,12 @@ math::Pose euroc_cam0_T_RS() {
   return math::Pose::from_isometry(iso);
 }
 
+strategies::KnownAssociationOptions demo_association_defaults() {
+  strategies::KnownAssociationOptions a;
+  a.prior.d_min = 1.0;
+  return a;
+}
+
 void PointDemoOptions::validate() const {
   if (!(duration_s > 0.0) || !(rate_hz > 0.0) || n_points < 10 || !(sigma_px >= 0.0) ||
       !(initial_velocity_std > 0.0)) {

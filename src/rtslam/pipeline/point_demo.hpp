@@ -22,6 +22,9 @@ namespace rtslam::pipeline {
 models::CameraIntrinsics euroc_cam0_intrinsics();
 math::Pose euroc_cam0_T_RS();
 
+/// RT-SLAM's association defaults, with the demo room's inverse-depth prior (d_min = 1 m, see below).
+strategies::KnownAssociationOptions demo_association_defaults();
+
 struct PointDemoOptions {
   std::uint64_t seed = 1;
   double duration_s = 30.0;
@@ -35,7 +38,7 @@ struct PointDemoOptions {
   // The demo room keeps every surface at least 1.3 m from the camera (floor and ceiling, 1.5 m ± 0.15 m away), so
   // its inverse-depth prior uses d_min = 1 m instead of RT-SLAM's hand-held 0.5 m: the prior then covers depths
   // [1 m, ∞) at 2σ, as the scene requires (see docs/configuration.md on choosing d_min).
-  strategies::KnownAssociationOptions association{.prior = models::AhpPrior{.d_min = 1.0}};
+  strategies::KnownAssociationOptions association = demo_association_defaults();
   strategies::MapPolicyOptions map;
   int state_capacity = 600;                    // covariance rows of the filter's storage
   void validate() const;

@@ -1,0 +1,118 @@
+// End-to-end tests of the rtslam command line: exit codes, one-line errors, outputs, reproducibility.
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int code = -1;
+  std::string out;  // stdout and stderr
+};
+
+Result run(const std::string& args) {
+  const std::string cmd = std::string(RTSLAM_CLI) + " " + args + " 2>&1";
+  Result r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf{};
+  while (fgets(buf.data(), static_cast<int>(buf.size()), p)) r.out += buf.data();
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("rtslam_test_cli_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+int count_lines(const std::string& s) {
+  int n = 0;
+  for (char c : s) n += c == '\n';
+  return n;
+}
+
+TEST(Cli, EverySubcommandHasHelp) {
+  for (const char* sub : {"run", "simulate", "eval", "batch", "report", "bench"}) {
+    const Result r = run(std::string(sub) + " --help");
+    EXPECT_EQ(r.code, 0) << sub << ": " << r.out;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub;
+  }
+  const Result none = run("");
+  EXPECT_NE(none.code, 0) << "a subcommand is required";
+}
+
+TEST(Cli, DemoRunWritesOutputsAndItsConfigReproducesIt) {
+  const fs::path a = temp_dir("demo_a");
+  const fs::path b = temp_dir("demo_b");
+  const Result r = run("run --duration 4 --seed 3 --quiet --out " + a.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("ATE"), std::string::npos);
+  for (const char* f : {"trajectory.txt", "trajectory.csv", "groundtruth.txt", "frames.csv", "summary.json",
+                        "config.yaml"}) {
+    EXPECT_TRUE(fs::exists(a / f)) << f;
+  }
+  // TUM text: 8 numbers per line, no header surprises.
+  std::istringstream traj(read_file(a / "trajectory.txt"));
+  std::string line;
+  int rows = 0;
+  while (std::getline(traj, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ls(line);
+    double v;
+    int n = 0;
+    while (ls >> v) ++n;
+    EXPECT_EQ(n, 8) << line;
+    ++rows;
+  }
+  EXPECT_GT(rows, 100);
+  const Result r2 = run("run --config " + (a / "config.yaml").string() + " --quiet --out " + b.string());
+  ASSERT_EQ(r2.code, 0) << r2.out;
+  EXPECT_EQ(read_file(a / "trajectory.txt"), read_file(b / "trajectory.txt"));
+}
+
+TEST(Cli, MissingConfigIsOneLineErrorNamingTheFile) {
+  const Result r = run("run --config /nonexistent/dir/cfg.yaml");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find("/nonexistent/dir/cfg.yaml"), std::string::npos) << r.out;
+  EXPECT_EQ(count_lines(r.out), 1) << r.out;
+}
+
+TEST(Cli, BrokenYamlIsOneLineErrorNamingTheFile) {
+  const fs::path d = temp_dir("broken");
+  std::ofstream(d / "bad.yaml") << "demo: {seed: [1, 2\n";
+  const Result r = run("run --config " + (d / "bad.yaml").string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find("bad.yaml"), std::string::npos) << r.out;
+  EXPECT_EQ(count_lines(r.out), 1) << r.out;
+  std::ofstream(d / "unknown.yaml") << "demo:\n  sead: 3\n";
+  const Result u = run("run --config " + (d / "unknown.yaml").string());
+  EXPECT_NE(u.code, 0);
+  EXPECT_NE(u.out.find("sead"), std::string::npos) << u.out;
+}
+
+TEST(Cli, DumpConfigPrintsTheEffectiveConfiguration) {
+  const Result r = run("run --dump-config --seed 9");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("seed: 9"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("d_min"), std::string::npos);
+}
+
+}  // namespace

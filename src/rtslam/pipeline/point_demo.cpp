@@ -41,6 +41,12 @@ strategies::KnownAssociationOptions demo_association_defaults() {
   return a;
 }
 
+strategies::MapPolicyOptions demo_map_defaults() {
+  strategies::MapPolicyOptions m;
+  m.forget_unseen_after_frames = 300;
+  return m;
+}
+
 void PointDemoOptions::validate() const {
   if (!(duration_s > 0.0) || !(rate_hz > 0.0) || n_points < 10 || !(sigma_px >= 0.0) ||
       !(initial_velocity_std > 0.0)) {

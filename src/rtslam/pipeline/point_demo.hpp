@@ -25,6 +25,10 @@ math::Pose euroc_cam0_T_RS();
 /// RT-SLAM's association defaults, with the demo room's inverse-depth prior (d_min = 1 m, see below).
 strategies::KnownAssociationOptions demo_association_defaults();
 
+/// RT-SLAM's global map policy, plus: landmarks not visible for 300 frames (10 s at 30 Hz) are dropped, so the
+/// bounded map keeps room for what the camera sees now.
+strategies::MapPolicyOptions demo_map_defaults();
+
 struct PointDemoOptions {
   std::uint64_t seed = 1;
   double duration_s = 30.0;
@@ -39,7 +43,7 @@ struct PointDemoOptions {
   // its inverse-depth prior uses d_min = 1 m instead of RT-SLAM's hand-held 0.5 m: the prior then covers depths
   // [1 m, ∞) at 2σ, as the scene requires (see docs/configuration.md on choosing d_min).
   strategies::KnownAssociationOptions association = demo_association_defaults();
-  strategies::MapPolicyOptions map;
+  strategies::MapPolicyOptions map = demo_map_defaults();
   int state_capacity = 600;                    // covariance rows of the filter's storage
   void validate() const;
 };

@@ -1,0 +1,113 @@
+#pragma once
+// A complete simulated sequence: a world, a trajectory of the robot (IMU) frame, a camera + IMU rig, and the
+// streams they produce: images rendered on demand at the camera rate, IMU samples at the IMU rate, and the exact
+// ground truth (pose, velocity, biases) at every IMU sample. It can be streamed in memory (io::Source, for
+// `rtslam run` with no dataset) or written as an EuRoC/ASL folder plus groundtruth.txt (TUM).
+//
+// Presets bundle a world, a trajectory and a rig (SimConfig::preset): "handheld" (room, hand-held motion, EuRoC
+// cam0 at 20 Hz, ADIS16448 IMU at 200 Hz, 30 s), "high-dynamic" (room, the RT-SLAM paper's extreme profile,
+// camera at 50 Hz, 45 s), "hall" (a larger hall with random boxes, hand-held, 30 s). YAML format in
+// docs/simulator.md and config/sim/*.yaml.
+//
+// Seeds: `seed` redraws every noise source (pixel noise, IMU white noise, bias walks, initial biases);
+// `trajectory_seed` (default: = seed) draws the shape of the handheld/high-dynamic motion. The world has its own
+// `world.seed` (textures), so runs with different seeds see the same room.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "rtslam/core/trajectory.hpp"
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/io/calibration.hpp"
+#include "rtslam/io/dataset.hpp"
+#include "rtslam/io/source.hpp"
+#include "rtslam/models/sensors/pinhole_camera.hpp"
+#include "rtslam/sim/imu.hpp"
+#include "rtslam/sim/renderer.hpp"
+#include "rtslam/sim/trajectory.hpp"
+#include "rtslam/sim/world.hpp"
+
+namespace rtslam::sim {
+
+struct SimConfig {
+  std::string name = "handheld";
+  std::uint64_t seed = 1;
+  std::optional<std::uint64_t> trajectory_seed;  // default: seed
+  double duration_s = 30.0;
+  double start_time_s = 1.0;         // timestamp of the first sample for synthetic trajectories
+  std::string trajectory = "handheld";  // handheld | high-dynamic | follow:FILE
+  double follow_knot_spacing_s = 0.05;
+  WorldConfig world = WorldConfig::preset("room");
+  io::CameraCalibration camera = euroc_cam0();
+  RenderOptions render;
+  bool imu_enabled = true;
+  ImuSynthOptions imu;
+
+  /// EuRoC MAV cam0 (mav0/cam0/sensor.yaml): 752x480, 20 Hz, radial-tangential, T_BS as T_RS.
+  static io::CameraCalibration euroc_cam0();
+  /// Built-in presets (see the header comment); ConfigError for an unknown name.
+  static SimConfig preset(const std::string& name);
+  static std::vector<std::string> preset_names();
+  /// A preset name or a YAML file (strict; keys documented in docs/simulator.md). Relative paths inside the file
+  /// (world file, calibration, follow:FILE) are resolved against the file's folder.
+  static SimConfig load(const std::string& name_or_file);
+  /// Reads a preset mapping on top of `base`.
+  static SimConfig from_yaml(YamlMap& map, SimConfig base, const std::string& dir);
+  void validate() const;
+};
+
+/// Pinhole intrinsics of an io calibration in the models' types (ConfigError for a model sim cannot render).
+models::CameraIntrinsics to_intrinsics(const io::CameraCalibration& cam);
+
+class Simulation : public std::enable_shared_from_this<Simulation> {
+ public:
+  /// Builds everything (textures, ray table, IMU samples, ground truth). For follow:FILE the room is grown and
+  /// obstacles on the path removed; for synthetic trajectories a path through an obstacle is a ConfigError.
+  static std::shared_ptr<const Simulation> create(const SimConfig& config);
+
+  const SimConfig& config() const { return config_; }
+  const World& world() const { return *world_; }
+  const ContinuousTrajectory& trajectory() const { return *trajectory_; }
+  const models::PinholeCamera& camera() const { return *camera_; }
+  /// The rig: camera 0 (T_RS), the IMU (noise densities, T_RS = identity) when enabled, t_d = 0.
+  const io::Rig& rig() const { return rig_; }
+  const std::vector<TimeNs>& image_times() const { return image_times_; }
+  const std::vector<SynthImuSample>& imu_samples() const { return imu_; }
+  /// Ground truth of R at every IMU sample (at every image without IMU): p, q, v, gyro and accel biases.
+  const Trajectory& ground_truth() const { return ground_truth_; }
+  /// T_WC of camera 0 at time t (T_WR(t) * T_RS).
+  math::Pose camera_pose(TimeNs t) const;
+  /// Renders image k (deterministic: its noise seed derives from (seed, k)).
+  cv::Mat render_image(std::size_t k) const;
+
+  /// An in-memory stream (IMU first at equal timestamps); it keeps this simulation alive.
+  std::unique_ptr<io::Source> make_source() const;
+  /// The stream, rig and ground truth as an io::Dataset (kind "sim"), for `rtslam run` with no dataset.
+  io::Dataset make_dataset() const;
+  /// Writes DIR/mav0/{cam0, imu0, state_groundtruth_estimate0} (EuRoC ASL) and DIR/groundtruth.txt (TUM), using
+  /// `threads` rendering threads per frame. Identical bytes for identical configs.
+  void write_euroc(const std::string& dir) const;
+
+ private:
+  explicit Simulation(const SimConfig& config);
+
+  SimConfig config_;
+  std::unique_ptr<ContinuousTrajectory> trajectory_;
+  std::unique_ptr<World> world_;
+  std::unique_ptr<models::PinholeCamera> camera_;
+  std::unique_ptr<Renderer> renderer_;
+  math::Pose T_RS_;
+  io::Rig rig_;
+  std::vector<TimeNs> image_times_;
+  std::vector<SynthImuSample> imu_;
+  Trajectory ground_truth_;
+};
+
+/// Mixes a seed with a stream id and an index (splitmix64): independent generators per noise source and frame.
+std::uint64_t mix_seed(std::uint64_t seed, std::uint64_t stream, std::uint64_t index = 0);
+
+}  // namespace rtslam::sim

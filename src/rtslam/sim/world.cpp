@@ -1,0 +1,444 @@
+#include "rtslam/sim/world.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
+#include "rtslam/core/random.hpp"
+#include "rtslam/core/yaml.hpp"
+
+namespace rtslam::sim {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+
+namespace {
+
+std::vector<BoxSpec> read_boxes(YamlMap& parent, const std::string& key, bool pillars) {
+  std::vector<BoxSpec> out;
+  if (!parent.has(key)) return out;
+  YAML::Node list;
+  parent.get(key, list);
+  if (!list.IsSequence()) throw ConfigError(fmt::format("{}: '{}' must be a list", parent.where(), parent.path_of(key)));
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    YamlMap m(list[i], fmt::format("{}[{}]", parent.path_of(key), i));
+    BoxSpec b;
+    Eigen::Vector2d c;
+    m.get_matrix("center", c);
+    b.center = c;
+    if (pillars) {
+      Eigen::Vector2d s(0.4, 0.4);
+      m.get_matrix("size", s);
+      b.size = Vector3d(s.x(), s.y(), 0.0);
+    } else {
+      m.get_matrix("size", b.size);
+    }
+    m.finish();
+    out.push_back(b);
+  }
+  return out;
+}
+
+}  // namespace
+
+WorldConfig WorldConfig::from_yaml(YamlMap& map) {
+  WorldConfig c;
+  map.get("seed", c.seed);
+  if (map.has("room")) {
+    YamlMap room = map.child("room");
+    room.get_matrix("size", c.room_size);
+    room.get_matrix("center", c.room_center);
+    room.get("floor", c.floor_z);
+    room.finish();
+  }
+  map.get("texel_size", c.texel_size);
+  map.get("texture", c.texture);
+  map.get("uniform_grey", c.uniform_grey);
+  map.get("images", c.images);
+  map.get("image_tile_size", c.image_tile_size);
+  c.boxes = read_boxes(map, "boxes", false);
+  c.pillars = read_boxes(map, "pillars", true);
+  map.get("random_boxes", c.random_boxes);
+  map.finish();
+  c.validate(map.where());
+  return c;
+}
+
+WorldConfig WorldConfig::from_file(const std::string& path) {
+  YamlMap map(load_yaml_file(path), path);
+  if (map.has("world")) {  // a preset file may nest the world under `world:`
+    YamlMap w = map.child("world");
+    WorldConfig c = from_yaml(w);
+    map.finish();
+    return c;
+  }
+  return from_yaml(map);
+}
+
+std::vector<std::string> WorldConfig::preset_names() { return {"room", "small-room", "hall"}; }
+
+WorldConfig WorldConfig::preset(const std::string& name) {
+  WorldConfig c;
+  if (name == "room") {
+    c.room_size = Vector3d(8.0, 6.0, 3.0);
+    c.boxes = {{Vector2d(2.6, 1.7), Vector3d(0.8, 0.6, 0.9)},
+               {Vector2d(-2.8, -1.8), Vector3d(1.0, 0.7, 0.6)},
+               {Vector2d(-2.9, 1.9), Vector3d(0.5, 0.5, 1.4)},
+               {Vector2d(3.0, -2.0), Vector3d(0.6, 0.9, 0.5)}};
+    c.pillars = {{Vector2d(1.8, -1.2), Vector3d(0.35, 0.35, 0.0)}, {Vector2d(-1.9, 0.9), Vector3d(0.3, 0.3, 0.0)}};
+  } else if (name == "small-room") {
+    c.room_size = Vector3d(5.0, 4.0, 2.6);
+    c.boxes = {{Vector2d(1.7, 1.2), Vector3d(0.6, 0.5, 0.8)}, {Vector2d(-1.8, -1.3), Vector3d(0.7, 0.6, 0.5)}};
+    c.pillars = {{Vector2d(-1.4, 1.2), Vector3d(0.25, 0.25, 0.0)}};
+  } else if (name == "hall") {
+    c.room_size = Vector3d(16.0, 12.0, 5.0);
+    c.texel_size = 0.008;
+    c.pillars = {{Vector2d(-4.0, -3.0), Vector3d(0.5, 0.5, 0.0)}, {Vector2d(4.0, -3.0), Vector3d(0.5, 0.5, 0.0)},
+                 {Vector2d(-4.0, 3.0), Vector3d(0.5, 0.5, 0.0)}, {Vector2d(4.0, 3.0), Vector3d(0.5, 0.5, 0.0)}};
+    c.random_boxes = 8;
+  } else {
+    throw ConfigError(fmt::format("world preset '{}' is unknown (known: room, small-room, hall)", name));
+  }
+  return c;
+}
+
+void WorldConfig::validate(const std::string& where) const {
+  for (int i = 0; i < 3; ++i)
+    require_bound(room_size[i] >= 1.0 && room_size[i] <= 200.0, where, "room.size", room_size[i], "in [1, 200] m");
+  require_bound(texel_size >= 0.0005 && texel_size <= 0.1, where, "texel_size", texel_size, "in [0.0005, 0.1] m");
+  const double texels = 2.0 * (room_size.x() * room_size.y() + room_size.x() * room_size.z() +
+                               room_size.y() * room_size.z()) / (texel_size * texel_size);
+  require_bound(texels <= 4e8, where, "texel_size", texel_size, "large enough for at most 4e8 room texels");
+  if (texture != "procedural" && texture != "uniform" && texture != "images")
+    throw ConfigError(fmt::format("{}: texture = '{}' must be procedural, uniform or images", where, texture));
+  require_bound(uniform_grey >= 0 && uniform_grey <= 255, where, "uniform_grey", uniform_grey, "in [0, 255]");
+  if (texture == "images" && images.empty())
+    throw ConfigError(fmt::format("{}: texture = images needs a non-empty 'images' list", where));
+  require_bound(image_tile_size > 0.0, where, "image_tile_size", image_tile_size, "> 0 m");
+  require_bound(random_boxes >= 0 && random_boxes <= 100, where, "random_boxes", random_boxes, "in [0, 100]");
+  auto check = [&](const std::vector<BoxSpec>& list, const char* key, bool pillar) {
+    for (const BoxSpec& b : list) {
+      for (int i = 0; i < (pillar ? 2 : 3); ++i)
+        require_bound(b.size[i] > 0.01, where, std::string(key) + ".size", b.size[i], "> 0.01 m");
+      for (int i = 0; i < 2; ++i)
+        require_bound(std::abs(b.center[i]) + 0.5 * b.size[i] < 0.5 * room_size[i], where,
+                      std::string(key) + ".center", b.center[i], "such that the box lies inside the room");
+      if (!pillar)
+        require_bound(b.size.z() < room_size.z(), where, std::string(key) + ".size", b.size.z(),
+                      "below the ceiling");
+    }
+  };
+  check(boxes, "boxes", false);
+  check(pillars, "pillars", true);
+}
+
+int WorldConfig::fit_to_points(const std::vector<Vector3d>& points, double margin, double clearance) {
+  if (points.empty()) return 0;
+  Vector3d lo = points.front(), hi = points.front();
+  for (const Vector3d& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Vector3d cur_lo(room_center.x() - 0.5 * room_size.x(), room_center.y() - 0.5 * room_size.y(), floor_z);
+  const Vector3d cur_hi = cur_lo + room_size;
+  const bool inside = ((lo.array() - margin) >= cur_lo.array()).all() && ((hi.array() + margin) <= cur_hi.array()).all();
+  if (!inside) {
+    for (int i = 0; i < 2; ++i) room_size[i] = std::max(room_size[i], hi[i] - lo[i] + 2.0 * margin);
+    room_center = 0.5 * (lo + hi).head<2>();
+    // The floor goes below the lowest point; the ceiling above the highest, at least the configured height.
+    floor_z = std::min(floor_z, lo.z() - margin);
+    room_size.z() = std::max(room_size.z(), hi.z() + margin - floor_z);
+  }
+  auto collides = [&](const BoxSpec& b, double height) {
+    for (const Vector3d& p : points) {
+      const Vector2d d = (p.head<2>() - room_center - b.center).cwiseAbs();
+      if (d.x() < 0.5 * b.size.x() + clearance && d.y() < 0.5 * b.size.y() + clearance &&
+          p.z() < floor_z + height + clearance)
+        return true;
+    }
+    return false;
+  };
+  const std::size_t before = boxes.size() + pillars.size();
+  std::erase_if(boxes, [&](const BoxSpec& b) { return collides(b, b.size.z()); });
+  std::erase_if(pillars, [&](const BoxSpec& b) { return collides(b, room_size.z()); });
+  if (random_boxes > 0) random_boxes = 0;  // their layout is unknown here: drop them rather than risk a collision
+  return static_cast<int>(before - boxes.size() - pillars.size());
+}
+
+float FaceTexture::sample(float s, float t) const {
+  s = std::clamp(s, 0.0f, static_cast<float>(width - 1));
+  t = std::clamp(t, 0.0f, static_cast<float>(height - 1));
+  const int x0 = std::min(static_cast<int>(s), width - 2 < 0 ? 0 : width - 2);
+  const int y0 = std::min(static_cast<int>(t), height - 2 < 0 ? 0 : height - 2);
+  const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
+  const float fx = s - static_cast<float>(x0), fy = t - static_cast<float>(y0);
+  const std::uint8_t* r0 = texels.data() + static_cast<std::size_t>(y0) * static_cast<std::size_t>(width);
+  const std::uint8_t* r1 = texels.data() + static_cast<std::size_t>(y1) * static_cast<std::size_t>(width);
+  const float top = static_cast<float>(r0[x0]) + fx * (static_cast<float>(r0[x1]) - static_cast<float>(r0[x0]));
+  const float bot = static_cast<float>(r1[x0]) + fx * (static_cast<float>(r1[x1]) - static_cast<float>(r1[x0]));
+  return top + fy * (bot - top);
+}
+
+World::World(const WorldConfig& config) : config_(config) {
+  config_.validate("world");
+  inv_texel_ = static_cast<float>(1.0 / config_.texel_size);
+  const Vector3d c0(config_.room_center.x(), config_.room_center.y(), config_.floor_z);
+  const Vector3d half(0.5 * config_.room_size.x(), 0.5 * config_.room_size.y(), 0.0);
+  room_min_ = (c0 - half).cast<float>();
+  room_max_ = (c0 + half + Vector3d(0, 0, config_.room_size.z())).cast<float>();
+  add_faces(room_min_, room_max_);  // faces 0..5: the room, seen from inside
+
+  std::vector<BoxSpec> all = config_.boxes;
+  for (BoxSpec p : config_.pillars) {
+    p.size.z() = config_.room_size.z();
+    all.push_back(p);
+  }
+  // Random boxes: seeded, away from the room centre (where the presets' trajectories move), not overlapping.
+  Rng rng(config_.seed * 0x9E3779B97F4A7C15ULL + 17);
+  for (int k = 0, tries = 0; k < config_.random_boxes && tries < 1000; ++tries) {
+    BoxSpec b;
+    b.size = Vector3d(randu(rng, 0.3, 1.2), randu(rng, 0.3, 1.2), randu(rng, 0.3, 0.7 * config_.room_size.z()));
+    const Vector2d lim(0.5 * config_.room_size.x() - 0.5 * b.size.x() - 0.05,
+                       0.5 * config_.room_size.y() - 0.5 * b.size.y() - 0.05);
+    b.center = Vector2d(randu(rng, -lim.x(), lim.x()), randu(rng, -lim.y(), lim.y()));
+    if (std::abs(b.center.x()) < 0.3 * config_.room_size.x() && std::abs(b.center.y()) < 0.3 * config_.room_size.y())
+      continue;
+    bool overlap = false;
+    for (const BoxSpec& o : all)
+      overlap |= std::abs(o.center.x() - b.center.x()) < 0.5 * (o.size.x() + b.size.x()) + 0.1 &&
+                 std::abs(o.center.y() - b.center.y()) < 0.5 * (o.size.y() + b.size.y()) + 0.1;
+    if (overlap) continue;
+    all.push_back(b);
+    ++k;
+  }
+  for (const BoxSpec& b : all) {
+    const Vector2d c = b.center + config_.room_center;
+    const Vector3f lo(static_cast<float>(c.x() - 0.5 * b.size.x()), static_cast<float>(c.y() - 0.5 * b.size.y()),
+                      room_min_.z());
+    const Vector3f hi(static_cast<float>(c.x() + 0.5 * b.size.x()), static_cast<float>(c.y() + 0.5 * b.size.y()),
+                      std::min(room_max_.z(), room_min_.z() + static_cast<float>(b.size.z())));
+    boxes_.push_back(Aabb{lo, hi, static_cast<int>(faces_.size())});
+    add_faces(lo, hi);
+  }
+  generate_textures();
+}
+
+void World::add_faces(const Vector3f& lo, const Vector3f& hi) {
+  for (int axis = 0; axis < 3; ++axis) {
+    const int b = (axis + 1) % 3, c = (axis + 2) % 3;
+    for (int side = 0; side < 2; ++side) {
+      Face f;
+      f.axis = axis;
+      f.coord = side == 0 ? lo[axis] : hi[axis];
+      f.lo = Eigen::Vector2f(lo[b], lo[c]);
+      f.hi = Eigen::Vector2f(hi[b], hi[c]);
+      f.texture = static_cast<int>(faces_.size());
+      faces_.push_back(f);
+    }
+  }
+}
+
+bool World::is_free(const Vector3d& p, double clearance) const {
+  const Vector3f q = p.cast<float>();
+  const auto cl = static_cast<float>(clearance);
+  for (int i = 0; i < 3; ++i)
+    if (q[i] < room_min_[i] + cl || q[i] > room_max_[i] - cl) return false;
+  for (const Aabb& b : boxes_) {
+    bool inside = true;
+    for (int i = 0; i < 3; ++i) inside &= q[i] > b.lo[i] - cl && q[i] < b.hi[i] + cl;
+    if (inside) return false;
+  }
+  return true;
+}
+
+bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  Vector3f inv;
+  for (int i = 0; i < 3; ++i) inv[i] = d[i] != 0.0f ? 1.0f / d[i] : kInf;
+  // Room: exit distance through the slab of each axis.
+  float best = kInf;
+  int face = -1;
+  for (int i = 0; i < 3; ++i) {
+    if (d[i] == 0.0f) continue;
+    const bool pos = d[i] > 0.0f;
+    const float t = ((pos ? room_max_[i] : room_min_[i]) - o[i]) * inv[i];
+    if (t < best) {
+      best = t;
+      face = 2 * i + (pos ? 1 : 0);
+    }
+  }
+  if (face < 0 || !(best > 0.0f)) return false;
+  // Boxes: entry distance (slab test); the entry face is on the axis of the largest near distance.
+  for (const Aabb& b : boxes_) {
+    float t_near = -kInf, t_far = kInf;
+    int axis = -1;
+    for (int i = 0; i < 3; ++i) {
+      float t0 = (b.lo[i] - o[i]) * inv[i], t1 = (b.hi[i] - o[i]) * inv[i];
+      if (d[i] == 0.0f) {
+        if (o[i] <= b.lo[i] || o[i] >= b.hi[i]) t_far = -kInf;  // parallel and outside the slab: no hit
+        continue;
+      }
+      if (t0 > t1) std::swap(t0, t1);
+      if (t0 > t_near) {
+        t_near = t0;
+        axis = i;
+      }
+      t_far = std::min(t_far, t1);
+    }
+    if (axis >= 0 && t_near <= t_far && t_near > 0.0f && t_near < best) {
+      best = t_near;
+      face = b.first_face + 2 * axis + (d[axis] > 0.0f ? 0 : 1);
+    }
+  }
+  hit.t = best;
+  hit.face = face;
+  return true;
+}
+
+float World::shade(int face_index, const Vector3f& p) const {
+  const Face& f = faces_[static_cast<std::size_t>(face_index)];
+  if (!markers_.empty()) {
+    const Vector3d pd = p.cast<double>();
+    for (const Marker& m : markers_)
+      if ((pd - m.center).squaredNorm() <= m.radius * m.radius) return m.grey;
+  }
+  const int b = (f.axis + 1) % 3, c = (f.axis + 2) % 3;
+  const float s = (p[b] - f.lo.x()) * inv_texel_, t = (p[c] - f.lo.y()) * inv_texel_;
+  return textures_[static_cast<std::size_t>(f.texture)].sample(s, t);
+}
+
+namespace {
+
+// A procedural, multi-scale texture of w x h texels (texel size tau metres), like a wall covered in posters,
+// objects and dirt: smooth blotches, poster-sized rectangles, centimetre objects, small blobs and grain.
+cv::Mat procedural_texture(int w, int h, double tau, Rng& rng) {
+  const double area = w * tau * h * tau;
+  auto px = [tau](double m) { return static_cast<int>(std::lround(m / tau)); };
+  auto grey = [&rng] { return cv::Scalar(static_cast<int>(randu(rng, 0.0, 256.0))); };
+  // Smooth low-frequency blotches (cells of ~0.3 m).
+  const int gw = std::max(2, static_cast<int>(w * tau / 0.3) + 2), gh = std::max(2, static_cast<int>(h * tau / 0.3) + 2);
+  cv::Mat coarse(gh, gw, CV_8UC1);
+  for (int y = 0; y < gh; ++y)
+    for (int x = 0; x < gw; ++x) coarse.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(randu(rng, 70.0, 190.0));
+  cv::Mat tex;
+  cv::resize(coarse, tex, cv::Size(w, h), 0, 0, cv::INTER_CUBIC);
+  auto random_point = [&] { return cv::Point(static_cast<int>(randu(rng, 0, w)), static_cast<int>(randu(rng, 0, h))); };
+  // Posters: 0.2–1.0 m rectangles, some with a frame.
+  const int n_posters = static_cast<int>(area / 2.0) + 1;
+  for (int i = 0; i < n_posters; ++i) {
+    const cv::Point p = random_point();
+    const cv::Point q = p + cv::Point(px(randu(rng, 0.2, 1.0)), px(randu(rng, 0.2, 1.0)));
+    cv::rectangle(tex, p, q, grey(), cv::FILLED);
+    if (randu(rng, 0, 1) < 0.5) cv::rectangle(tex, p, q, grey(), std::max(1, px(0.01)));
+  }
+  // Objects of 2–15 cm: rectangles, rotated rectangles, discs, ellipses, triangles.
+  const int n_objects = static_cast<int>(area * 60.0);
+  for (int i = 0; i < n_objects; ++i) {
+    const cv::Point c = random_point();
+    const double size = std::exp(randu(rng, std::log(0.02), std::log(0.15)));
+    const int kind = static_cast<int>(randu(rng, 0, 5));
+    const cv::Scalar g = grey();
+    if (kind == 0) {
+      cv::rectangle(tex, c, c + cv::Point(px(size), px(size * randu(rng, 0.3, 1.5))), g, cv::FILLED);
+    } else if (kind == 1) {
+      const cv::RotatedRect r(cv::Point2f(static_cast<float>(c.x), static_cast<float>(c.y)),
+                              cv::Size2f(static_cast<float>(px(size)), static_cast<float>(px(size * randu(rng, 0.3, 1.0)))),
+                              static_cast<float>(randu(rng, 0, 180)));
+      cv::Point2f v[4];
+      r.points(v);
+      const cv::Point pts[4] = {v[0], v[1], v[2], v[3]};
+      cv::fillConvexPoly(tex, pts, 4, g);
+    } else if (kind == 2) {
+      cv::circle(tex, c, std::max(1, px(size / 2)), g, cv::FILLED);
+    } else if (kind == 3) {
+      cv::ellipse(tex, c, cv::Size(std::max(1, px(size / 2)), std::max(1, px(size * randu(rng, 0.15, 0.5)))),
+                  randu(rng, 0, 180), 0, 360, g, cv::FILLED);
+    } else {
+      const cv::Point pts[3] = {c, c + cv::Point(px(size * randu(rng, -1, 1)), px(size * randu(rng, 0.3, 1))),
+                                c + cv::Point(px(size * randu(rng, 0.3, 1)), px(size * randu(rng, -1, 1)))};
+      cv::fillConvexPoly(tex, pts, 3, g);
+    }
+  }
+  // Small blobs and dots of 0.5–2 cm.
+  const int n_small = static_cast<int>(area * 150.0);
+  for (int i = 0; i < n_small; ++i) {
+    const cv::Point c = random_point();
+    const int r = std::max(1, px(randu(rng, 0.0025, 0.01)));
+    if (randu(rng, 0, 1) < 0.5)
+      cv::circle(tex, c, r, grey(), cv::FILLED);
+    else
+      cv::rectangle(tex, c - cv::Point(r, r), c + cv::Point(r, r), grey(), cv::FILLED);
+  }
+  // Grain.
+  cv::Mat grain(h, w, CV_16SC1);
+  std::int16_t* g = grain.ptr<std::int16_t>();
+  for (std::size_t i = 0; i < grain.total(); ++i) g[i] = static_cast<std::int16_t>(std::lround(5.0 * randn(rng)));
+  cv::Mat tex16;
+  tex.convertTo(tex16, CV_16SC1);
+  tex16 += grain;
+  tex16.convertTo(tex, CV_8UC1);  // saturating
+  return tex;
+}
+
+}  // namespace
+
+void World::generate_textures() {
+  std::vector<cv::Mat> images;
+  if (config_.texture == "images") {
+    for (const std::string& path : config_.images) {
+      cv::Mat im = cv::imread(path, cv::IMREAD_GRAYSCALE);
+      if (im.empty()) throw IoError(fmt::format("world: cannot read texture image '{}'", path));
+      images.push_back(im);
+    }
+  }
+  textures_.resize(faces_.size());
+  for (std::size_t k = 0; k < faces_.size(); ++k) {
+    const Face& f = faces_[k];
+    FaceTexture& tex = textures_[k];
+    // Faces nobody can see (box bottoms on the floor, pillar ends on floor/ceiling) get a 2x2 texture.
+    const bool hidden = k >= 6 && f.axis == 2 &&
+                        (std::abs(f.coord - room_min_.z()) < 1e-6f || std::abs(f.coord - room_max_.z()) < 1e-6f);
+    const Eigen::Vector2f ext = f.hi - f.lo;
+    tex.width = hidden ? 2 : static_cast<int>(std::ceil(ext.x() * inv_texel_)) + 2;
+    tex.height = hidden ? 2 : static_cast<int>(std::ceil(ext.y() * inv_texel_)) + 2;
+    cv::Mat m;
+    if (hidden || config_.texture == "uniform") {
+      m = cv::Mat(tex.height, tex.width, CV_8UC1, cv::Scalar(config_.uniform_grey));
+    } else if (config_.texture == "images") {
+      const cv::Mat& im = images[k % images.size()];
+      const int tile_w = std::max(2, static_cast<int>(std::lround(config_.image_tile_size * inv_texel_)));
+      const int tile_h = std::max(2, static_cast<int>(std::lround(tile_w * static_cast<double>(im.rows) / im.cols)));
+      cv::Mat tile;
+      cv::resize(im, tile, cv::Size(tile_w, tile_h), 0, 0, cv::INTER_AREA);
+      m = cv::Mat(tex.height, tex.width, CV_8UC1);
+      for (int y = 0; y < tex.height; y += tile_h)
+        for (int x = 0; x < tex.width; x += tile_w) {
+          const cv::Rect r(x, y, std::min(tile_w, tex.width - x), std::min(tile_h, tex.height - y));
+          tile(cv::Rect(0, 0, r.width, r.height)).copyTo(m(r));
+        }
+    } else {
+      Rng rng(config_.seed * 1000003ULL + k);
+      m = procedural_texture(tex.width, tex.height, config_.texel_size, rng);
+    }
+    if (!hidden && config_.texture != "uniform") {
+      // Baked-in lighting so that faces of different orientation differ in brightness as under a ceiling light:
+      // floor darker, ceiling brighter, walls by orientation (uniform textures stay exact for tests).
+      static constexpr double kGain[3][2] = {{0.85, 0.95}, {0.9, 0.8}, {0.7, 1.1}};
+      m.convertTo(m, CV_8U, kGain[f.axis][k < 6 ? k % 2 : 1 - k % 2]);  // [axis][normal along +axis ? 0 : 1]
+    }
+    tex.texels.assign(m.datastart, m.dataend);
+  }
+  std::size_t total = 0;
+  for (const FaceTexture& t : textures_) total += t.texels.size();
+  logger("sim")->debug("world: {} faces, {:.1f} Mtexels", faces_.size(), static_cast<double>(total) * 1e-6);
+}
+
+}  // namespace rtslam::sim

@@ -1,0 +1,138 @@
+#pragma once
+// Synthetic worlds: a closed axis-aligned room (floor, ceiling, four walls) containing axis-aligned boxes and
+// pillars, every face textured. Textures are procedural (seeded, multi-scale: poster-sized rectangles, objects of
+// a few centimetres, small blobs, grain, so that Harris corners are plentiful and not repetitive), uniform grey
+// (for tests), or image files given by the user (tiled at a physical size). Small analytic disc markers can be
+// added for geometry tests.
+//
+// Frames: W, z up; the room spans [cx - sx/2, cx + sx/2] x [cy - sy/2, cy + sy/2] x [floor, floor + sz], with
+// (cx, cy) = room.center (default 0) and floor = room.floor (default 0). Box and pillar centres are given relative
+// to the room centre. Lengths in metres.
+//
+// YAML (all keys optional; unknown keys are errors):
+//   seed: 1                   # texture and random-box layout
+//   room: {size: [8, 6, 3], center: [0, 0], floor: 0}
+//   texel_size: 0.005         # m per texel
+//   texture: procedural       # procedural | uniform | images
+//   uniform_grey: 128         # texture: uniform
+//   images: [a.png, b.jpg]    # texture: images (grey; face k uses image k mod n)
+//   image_tile_size: 1.0      # m covered by one image tile's width
+//   boxes: [{center: [x, y], size: [sx, sy, sz]}]   # standing on the floor
+//   pillars: [{center: [x, y], size: [sx, sy]}]     # floor to ceiling
+//   random_boxes: 0           # extra boxes placed at random (seeded), away from the room centre
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace rtslam {
+class YamlMap;
+}
+
+namespace rtslam::sim {
+
+struct BoxSpec {
+  Eigen::Vector2d center = Eigen::Vector2d::Zero();    // x, y of the footprint centre, from the room centre (m)
+  Eigen::Vector3d size = Eigen::Vector3d(0.5, 0.5, 0.5);  // m
+};
+
+struct WorldConfig {
+  std::uint64_t seed = 1;
+  Eigen::Vector3d room_size = Eigen::Vector3d(8.0, 6.0, 3.0);
+  Eigen::Vector2d room_center = Eigen::Vector2d::Zero();
+  double floor_z = 0.0;
+  double texel_size = 0.005;
+  std::string texture = "procedural";
+  int uniform_grey = 128;
+  std::vector<std::string> images;
+  double image_tile_size = 1.0;
+  std::vector<BoxSpec> boxes;    // on the floor
+  std::vector<BoxSpec> pillars;  // size.z ignored: floor to ceiling
+  int random_boxes = 0;
+
+  /// Reads the keys documented above from `map` and checks the whole mapping (unknown keys are errors).
+  static WorldConfig from_yaml(YamlMap& map);
+  static WorldConfig from_file(const std::string& path);
+  /// Built-in worlds: "room" (8x6x3 m, boxes and pillars), "small-room" (5x4x2.6 m), "hall" (16x12x5 m).
+  static WorldConfig preset(const std::string& name);
+  static std::vector<std::string> preset_names();
+  /// ConfigError naming `where`, the key and the bound.
+  void validate(const std::string& where) const;
+  /// Grows the room (keeping at least its size) so that every point lies at least `margin` inside it, recentring
+  /// it on the points' bounding box; boxes and pillars closer than `clearance` to a point are removed. Returns
+  /// the number of obstacles removed. For worlds around recorded trajectories (follow:FILE).
+  int fit_to_points(const std::vector<Eigen::Vector3d>& points, double margin, double clearance);
+};
+
+/// A texture image of one face: grey levels, texel (0, 0) at the face's minimum corner.
+struct FaceTexture {
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> texels;  // row-major
+  /// Bilinear sample at texel coordinates (s, t) (clamped to the texture).
+  float sample(float s, float t) const;
+};
+
+/// A small flat disc painted on a surface (for geometry tests): every hit within `radius` of `center` gets
+/// `grey`, whatever the texture.
+struct Marker {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double radius = 0.01;
+  float grey = 255.0f;
+};
+
+/// The closest surface along a ray.
+struct Hit {
+  float t = 0.0f;   // distance along the (not necessarily unit) direction
+  int face = -1;    // index into World::faces()
+};
+
+/// An axis-aligned face: normal along `axis`, plane coordinate `coord`, rectangle lo..hi on the two other axes
+/// ((axis+1)%3, (axis+2)%3).
+struct Face {
+  int axis = 0;
+  float coord = 0.0f;
+  Eigen::Vector2f lo = Eigen::Vector2f::Zero(), hi = Eigen::Vector2f::Zero();
+  int texture = 0;
+};
+
+class World {
+ public:
+  /// Builds the geometry and generates the textures (procedural textures take ~1 s per 100 m² at 5 mm texels).
+  explicit World(const WorldConfig& config);
+
+  const WorldConfig& config() const { return config_; }
+  Eigen::Vector3d room_min() const { return room_min_.cast<double>(); }
+  Eigen::Vector3d room_max() const { return room_max_.cast<double>(); }
+  const std::vector<Face>& faces() const { return faces_; }
+  const std::vector<FaceTexture>& textures() const { return textures_; }
+  std::vector<Marker>& markers() { return markers_; }
+  const std::vector<Marker>& markers() const { return markers_; }
+
+  /// True if p is inside the room and outside every box (with a clearance in m).
+  bool is_free(const Eigen::Vector3d& p_W, double clearance = 0.0) const;
+
+  /// Closest hit of the ray o + t·d (t > 0) from a point inside the room. Always hits (the room is closed)
+  /// unless o is outside the room.
+  bool cast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, Hit& hit) const;
+  /// Grey level at a hit point p on a face (bilinear texture sample, markers on top).
+  float shade(int face, const Eigen::Vector3f& p) const;
+
+ private:
+  struct Aabb {
+    Eigen::Vector3f lo, hi;
+    int first_face;  // faces first_face + 2*axis + (0: lo side, 1: hi side)
+  };
+  void add_faces(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi);
+  void generate_textures();
+
+  WorldConfig config_;
+  Eigen::Vector3f room_min_, room_max_;
+  std::vector<Aabb> boxes_;
+  std::vector<Face> faces_;
+  std::vector<FaceTexture> textures_;
+  std::vector<Marker> markers_;
+  float inv_texel_ = 200.0f;
+};
+
+}  // namespace rtslam::sim

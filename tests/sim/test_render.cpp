@@ -1,0 +1,270 @@
+// World and renderer: exact geometry (markers project where the image shows them, 0.3 px), determinism,
+// noise statistics, corner-rich textures, motion blur, ray casting, world configuration.
+#include <cmath>
+#include <numbers>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/random.hpp"
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/math/rotation.hpp"
+#include "rtslam/sim/renderer.hpp"
+#include "rtslam/sim/world.hpp"
+
+namespace rtslam::sim {
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+
+// EuRoC cam0 (mav0/cam0/sensor.yaml): 752x480, pinhole + radial-tangential.
+models::PinholeCamera euroc_cam0() {
+  models::CameraIntrinsics in;
+  in.width = 752;
+  in.height = 480;
+  in.fx = 458.654;
+  in.fy = 457.296;
+  in.cx = 367.215;
+  in.cy = 248.375;
+  in.model = models::DistortionModel::RadTan;
+  in.coeffs = {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05};
+  return models::PinholeCamera(in);
+}
+
+// A camera in the room looking roughly along +x, tilted and rolled a little (C: z forward, x right, y down).
+math::Pose camera_pose(double yaw = 0.2, double pitch = 0.15, double roll = 0.1) {
+  Eigen::Matrix3d R_WC0;  // columns: camera x -> -y_W, camera y -> -z_W, camera z -> +x_W
+  R_WC0 << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw, Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(roll, Vector3d::UnitX()))
+                                .toRotationMatrix() *
+                            R_WC0;
+  math::Pose T;
+  T.q = Eigen::Quaterniond(R);
+  T.p = Vector3d(0.3, -0.2, 1.4);
+  return T;
+}
+
+WorldConfig uniform_room(int grey) {
+  WorldConfig c = WorldConfig::preset("room");
+  c.texture = "uniform";
+  c.uniform_grey = grey;
+  return c;
+}
+
+TEST(Renderer, MarkersProjectWhereTheImageShowsThem) {
+  const models::PinholeCamera cam = euroc_cam0();
+  World world(uniform_room(40));
+  const math::Pose T_WC = camera_pose();
+  // Markers on whatever surface the rays of a grid of (sub-pixel) positions hit, including the strongly distorted
+  // corners of the image; the disc radius is chosen to look ~3 px wide.
+  std::vector<Vector3d> centers;
+  Rng rng(5);
+  for (int gy = 0; gy < 5; ++gy)
+    for (int gx = 0; gx < 7; ++gx) {
+      const Vector2d px(30.0 + gx * 115.0 + randu(rng, 0, 1), 25.0 + gy * 105.0 + randu(rng, 0, 1));
+      Vector3d ray;
+      ASSERT_TRUE(cam.unproject(px, ray));
+      const Vector3d d_W = T_WC.q * ray;
+      Hit hit;
+      ASSERT_TRUE(world.cast(T_WC.p.cast<float>(), d_W.cast<float>(), hit));
+      const Vector3d p_W = T_WC.p + static_cast<double>(hit.t) * d_W;
+      const double radius = 3.0 * (p_W - T_WC.p).norm() / cam.intrinsics().fx;
+      // Keep only markers whose disc lies whole on one visible face (not cut by an edge or an occluder): the
+      // surroundings at 2 radii along the face's axes must be seen on the same face.
+      const Face& face = world.faces()[static_cast<std::size_t>(hit.face)];
+      bool whole = true;
+      for (int axis : {(face.axis + 1) % 3, (face.axis + 2) % 3})
+        for (double s : {-2.0, 2.0}) {
+          Vector3d q = p_W;
+          q[axis] += s * radius;
+          Hit h;
+          whole &= world.cast(T_WC.p.cast<float>(), (q - T_WC.p).cast<float>(), h) && h.face == hit.face &&
+                   std::abs(h.t - 1.0f) < 1e-4f;
+        }
+      if (!whole) continue;
+      centers.push_back(p_W);
+      world.markers().push_back(Marker{p_W, radius, 255.0f});
+    }
+  RenderOptions opt;
+  opt.supersampling = 3;
+  opt.noise_std = 0.0;
+  const Renderer renderer(world, cam, opt);
+  const cv::Mat img = renderer.render(T_WC, 1);
+  int checked = 0, distortion_matters = 0;
+  double worst = 0.0;
+  for (std::size_t k = 0; k < centers.size(); ++k) {
+    Vector2d expected;
+    ASSERT_TRUE(cam.project(T_WC.inverse_transform(centers[k]), expected));
+    if (!cam.in_image(expected, 8.0)) continue;
+    // Intensity-weighted centroid above the background in a window around the expected position.
+    double sw = 0.0, su = 0.0, sv = 0.0;
+    const int u0 = static_cast<int>(std::lround(expected.x())), v0 = static_cast<int>(std::lround(expected.y()));
+    for (int v = v0 - 7; v <= v0 + 7; ++v)
+      for (int u = u0 - 7; u <= u0 + 7; ++u) {
+        const double w = std::max(0.0, img.at<std::uint8_t>(v, u) - 40.0);
+        sw += w;
+        su += w * u;
+        sv += w * v;
+      }
+    ASSERT_GT(sw, 500.0) << "marker " << k << " not visible near " << expected.transpose();
+    const double err = (Vector2d(su / sw, sv / sw) - expected).norm();
+    worst = std::max(worst, err);
+    if (std::getenv("RTSLAM_SIM_DEBUG")) std::printf("marker %zu at %.1f %.1f err %.3f (%.3f %.3f)\n", k, expected.x(), expected.y(), err, su / sw - expected.x(), sv / sw - expected.y());
+    EXPECT_LT(err, 0.3) << "marker " << k << " at " << expected.transpose();
+    ++checked;
+    // Without the distortion the same point would be elsewhere: the check depends on the exact camera model.
+    const Vector3d p_C = T_WC.inverse_transform(centers[k]);
+    const auto& in = cam.intrinsics();
+    const Vector2d pinhole(in.fx * p_C.x() / p_C.z() + in.cx, in.fy * p_C.y() / p_C.z() + in.cy);
+    if ((pinhole - expected).norm() > 2.0) ++distortion_matters;
+  }
+  EXPECT_GE(checked, 28);
+  EXPECT_GE(distortion_matters, 10);
+  RecordProperty("worst_marker_error_px", std::to_string(worst));
+}
+
+TEST(Renderer, IsDeterministicAndIndependentOfTheThreadCount) {
+  const models::PinholeCamera cam = euroc_cam0();
+  WorldConfig c = WorldConfig::preset("small-room");
+  c.texel_size = 0.01;
+  const World world(c);
+  RenderOptions one;
+  one.threads = 1;
+  one.supersampling = 1;
+  RenderOptions two = one;
+  two.threads = 2;
+  const Renderer r1(world, cam, one), r2(world, cam, two);
+  math::Pose T = camera_pose();
+  T.p = Vector3d(0.1, 0.1, 1.3);
+  const cv::Mat a = r1.render(T, 42), b = r2.render(T, 42), c2 = r2.render(T, 43);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(a, c2, cv::NORM_L1), 0.0);  // another seed, other noise
+}
+
+TEST(Renderer, PixelNoiseHasTheRequestedStandardDeviation) {
+  const models::PinholeCamera cam = euroc_cam0();
+  const World world(uniform_room(100));
+  RenderOptions opt;
+  opt.noise_std = 3.0;
+  opt.supersampling = 1;
+  const Renderer renderer(world, cam, opt);
+  const cv::Mat img = renderer.render(camera_pose(), 9);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(img, mean, stddev);
+  EXPECT_NEAR(mean[0], 100.0, 0.1);
+  EXPECT_NEAR(stddev[0], 3.0, 0.1);  // rounding adds 1/12 grey level² of variance: sqrt(9 + 0.083) = 3.014
+}
+
+TEST(Renderer, ProceduralRoomIsRichInCornersEverywhere) {
+  const models::PinholeCamera cam = euroc_cam0();
+  const World world(WorldConfig::preset("room"));  // the real preset (5 mm texels)
+  const Renderer renderer(world, cam, RenderOptions{});
+  for (double yaw : {0.0, 3.1}) {
+    const cv::Mat img = renderer.render(camera_pose(yaw, 0.1, 0.0), 3);
+    std::vector<cv::Point2f> corners;
+    cv::goodFeaturesToTrack(img, corners, 1000, 0.01, 8, cv::noArray(), 5, false);
+    // Corners spread over the whole image: cells of a 6x4 grid that contain at least 3 corners.
+    int cells[4][6] = {};
+    for (const auto& p : corners) ++cells[std::min(3, static_cast<int>(p.y / 120))][std::min(5, static_cast<int>(p.x / 125.4))];
+    int filled = 0;
+    for (auto& row : cells)
+      for (int n : row) filled += n >= 3 ? 1 : 0;
+    EXPECT_GE(corners.size(), 300u) << "yaw " << yaw;
+    EXPECT_GE(filled, 22) << "yaw " << yaw;
+  }
+}
+
+TEST(Renderer, UniformWorldHasNoCorners) {
+  // The corner check above can fail: a uniform world (apart from the room's edges) yields few corners.
+  const models::PinholeCamera cam = euroc_cam0();
+  const World world(uniform_room(128));
+  RenderOptions opt;
+  opt.noise_std = 0.0;
+  opt.supersampling = 1;
+  const Renderer renderer(world, cam, opt);
+  const cv::Mat img = renderer.render(camera_pose(0.0, 0.0, 0.0), 3);
+  std::vector<cv::Point2f> corners;
+  cv::goodFeaturesToTrack(img, corners, 1000, 0.01, 8, cv::noArray(), 5, false);
+  EXPECT_LT(corners.size(), 300u);
+}
+
+TEST(Renderer, MotionBlurSmoothsAFastRotation) {
+  const models::PinholeCamera cam = euroc_cam0();
+  WorldConfig c = WorldConfig::preset("room");
+  c.texel_size = 0.015;
+  const World world(c);
+  RenderOptions sharp;
+  sharp.noise_std = 0.0;
+  RenderOptions blurred = sharp;
+  blurred.motion_blur = true;
+  blurred.exposure_s = 0.01;
+  const Renderer rs(world, cam, sharp), rb(world, cam, blurred);
+  ASSERT_EQ(rb.pose_count(), 4);
+  // 400 deg/s yaw during a 10 ms exposure: about 25 px of smear at the centre.
+  std::vector<math::Pose> poses;
+  for (double dt : rb.pose_time_offsets()) poses.push_back(camera_pose(0.5 + 7.0 * dt, 0.1, 0.0));
+  const cv::Mat a = rs.render(camera_pose(0.5, 0.1, 0.0), 1), b = rb.render(poses, 1);
+  cv::Mat ga, gb;
+  cv::Sobel(a, ga, CV_32F, 1, 0);
+  cv::Sobel(b, gb, CV_32F, 1, 0);
+  EXPECT_LT(cv::norm(gb, cv::NORM_L2), 0.8 * cv::norm(ga, cv::NORM_L2));
+  // Without motion the blurred renderer gives the sharp image (same sub-pixel rays, same instant).
+  const cv::Mat b0 = rb.render(camera_pose(0.5, 0.1, 0.0), 1);
+  EXPECT_EQ(cv::norm(a, b0, cv::NORM_INF), 0.0);
+}
+
+TEST(World, CastsRaysToTheClosestFace) {
+  WorldConfig c;
+  c.room_size = Vector3d(8, 6, 3);
+  c.texture = "uniform";
+  c.boxes = {{Eigen::Vector2d(2.0, 0.0), Vector3d(0.5, 0.5, 1.0)}};
+  const World world(c);
+  Hit hit;
+  // Towards +y: the wall at y = 3.
+  ASSERT_TRUE(world.cast(Vector3f(0, 0, 0.5), Vector3f(0, 1, 0), hit));
+  EXPECT_NEAR(hit.t, 3.0f, 1e-5f);
+  EXPECT_EQ(world.faces()[static_cast<std::size_t>(hit.face)].axis, 1);
+  // Towards +x at box height: the box face at x = 1.75, not the wall at x = 4.
+  ASSERT_TRUE(world.cast(Vector3f(0, 0, 0.5), Vector3f(2, 0, 0), hit));
+  EXPECT_NEAR(hit.t, 0.875f, 1e-5f);
+  EXPECT_NEAR(world.faces()[static_cast<std::size_t>(hit.face)].coord, 1.75f, 1e-6f);
+  // Above the box: the wall.
+  ASSERT_TRUE(world.cast(Vector3f(0, 0, 1.5), Vector3f(1, 0, 0), hit));
+  EXPECT_NEAR(hit.t, 4.0f, 1e-5f);
+  // Down: the floor.
+  ASSERT_TRUE(world.cast(Vector3f(0, 0, 1.5), Vector3f(0, 0, -1), hit));
+  EXPECT_NEAR(hit.t, 1.5f, 1e-5f);
+  EXPECT_TRUE(world.is_free(Vector3d(0, 0, 1.5)));
+  EXPECT_FALSE(world.is_free(Vector3d(2.0, 0.0, 0.5)));
+  EXPECT_FALSE(world.is_free(Vector3d(5.0, 0.0, 0.5)));
+}
+
+TEST(World, ReadsYamlStrictlyAndValidates) {
+  const std::string ok = R"(
+seed: 4
+room: {size: [6, 5, 2.5]}
+texel_size: 0.01
+boxes: [{center: [1.5, 1.0], size: [0.5, 0.5, 0.8]}]
+pillars: [{center: [-1.0, 1.0], size: [0.3, 0.3]}]
+random_boxes: 2
+)";
+  YamlMap m(YAML::Load(ok), "test.yaml");
+  const WorldConfig c = WorldConfig::from_yaml(m);
+  EXPECT_EQ(c.seed, 4u);
+  EXPECT_DOUBLE_EQ(c.room_size.z(), 2.5);
+  ASSERT_EQ(c.boxes.size(), 1u);
+  ASSERT_EQ(c.pillars.size(), 1u);
+  YamlMap bad_key(YAML::Load("room: {size: [6, 5, 2.5]}\ncolour: red\n"), "test.yaml");
+  EXPECT_THROW(WorldConfig::from_yaml(bad_key), ConfigError);
+  YamlMap outside(YAML::Load("boxes: [{center: [3.9, 0], size: [0.5, 0.5, 0.5]}]\n"), "test.yaml");
+  EXPECT_THROW(WorldConfig::from_yaml(outside), ConfigError);
+  EXPECT_THROW(WorldConfig::preset("castle"), ConfigError);
+  for (const std::string& name : WorldConfig::preset_names()) EXPECT_NO_THROW(WorldConfig::preset(name).validate(name));
+}
+
+}  // namespace
+}  // namespace rtslam::sim

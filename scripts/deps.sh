@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(
   cmake g++ ninja-build pkg-config
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
-  libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox
+  libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
 )
 missing=()
 for p in "${packages[@]}"; do

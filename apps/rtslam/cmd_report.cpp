@@ -1,15 +1,30 @@
-// rtslam report: placeholder until its issue lands; it says so and exits with code 2.
+// rtslam report RUN_DIR|BATCH_DIR: a self-contained HTML page with the paper's figures (gnuplot, SVG inline).
 #include <iostream>
+#include <memory>
 
 #include "commands.hpp"
+#include "rtslam/eval/report.hpp"
 
 namespace rtslam::cli {
 
+namespace {
+struct ReportArgs {
+  std::string dir, out, align = "se3";
+};
+}  // namespace
+
 void register_report(CLI::App& app) {
-  auto* sub = app.add_subcommand("report", "Write an HTML report with the paper's figures for a run or a batch (not implemented yet)");
-  sub->callback([] {
-    std::cerr << "rtslam report: not implemented yet\n";
-    throw CommandExit{2};
+  auto a = std::make_shared<ReportArgs>();
+  auto* sub = app.add_subcommand("report", "Write an HTML report with the paper's figures for a run or a batch");
+  sub->add_option("DIR", a->dir, "run directory (trajectory + groundtruth) or batch directory")->required();
+  sub->add_option("--out", a->out, "HTML file (default: DIR/report.html)");
+  sub->add_option("--align", a->align, "alignment for a run report: se3, sim3, posyaw, origin or none")
+      ->capture_default_str();
+  sub->callback([a] {
+    eval::ReportOptions o;
+    o.output = a->out;
+    o.eval.align = eval::parse_alignment(a->align);
+    std::cout << "wrote " << eval::write_report(a->dir, o) << '\n';
   });
 }
 

@@ -1,0 +1,38 @@
+#pragma once
+// Trajectory alignment: the transform S that maps the estimate onto the ground truth (est' = S ∘ est), fitted on
+// associated positions. Umeyama (1991) least squares for SE(3)/Sim(3), the same equations as evo's
+// geometry.umeyama_alignment; position + yaw (4-DoF, gravity along z in both frames: the usual choice for VIO);
+// first-pose (evo's --align_origin: S = T_gt0 · T_est0⁻¹); none.
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rtslam/core/trajectory.hpp"
+#include "rtslam/eval/geometry.hpp"
+
+namespace rtslam::eval {
+
+enum class Alignment { Se3, Sim3, PosYaw, Origin, None };
+
+/// "se3" | "sim3" | "posyaw" | "origin" | "none"; throws ConfigError naming the value otherwise.
+Alignment parse_alignment(std::string_view name);
+std::string to_string(Alignment a);
+
+/// Least-squares S (rotation, translation, and scale if `with_scale`) minimizing Σ |dst_i − S(src_i)|².
+/// Throws DataError when sizes differ, fewer than 3 points are given, or the point cloud is degenerate (rank < 2).
+Sim3 umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst, bool with_scale);
+
+/// Least-squares rotation about z plus translation minimizing Σ |dst_i − (R_z(ψ) src_i + t)|² (closed form).
+/// Throws DataError when sizes differ, the set is empty, or the horizontal spread is zero.
+Sim3 align_position_yaw(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst);
+
+/// The alignment of `est` onto `gt`; both must be associated (same length, pose i ↔ pose i).
+Sim3 compute_alignment(const Trajectory& est, const Trajectory& gt, Alignment method);
+
+/// est' = S ∘ est for every pose: p' = s R p + t, q' = q(R) ⊗ q. A pose covariance [δp δθ] is carried along:
+/// δp' = s R δp (world-frame position error), δθ unchanged (right perturbation in the robot frame).
+Trajectory apply_alignment(const Sim3& S, const Trajectory& est);
+
+}  // namespace rtslam::eval

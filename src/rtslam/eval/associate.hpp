@@ -1,0 +1,23 @@
+#pragma once
+// Association of an estimate with its ground truth by timestamp, with evo's rule (sync.associate_trajectories):
+// for every pose of the SHORTER trajectory (the ground truth on a tie), the pose of the longer one with the nearest
+// timestamp (the first on a tie) is taken if |Δt| <= max_diff; the estimate's stamps are shifted by offset first.
+// Trajectories without timestamps (KITTI) are associated by index and must have the same length.
+#include <utility>
+
+#include "rtslam/core/time.hpp"
+#include "rtslam/core/trajectory.hpp"
+
+namespace rtslam::eval {
+
+struct AssociationOptions {
+  double max_diff_s = 0.01;  // evo's default --t_max_diff
+  double offset_s = 0.0;     // added to the estimate's timestamps before matching (evo's --t_offset)
+};
+
+/// Associated copies {est, gt}: same length, pose i of one matches pose i of the other. Throws DataError when no
+/// pose matches (naming both sources) or when index association meets different lengths.
+std::pair<Trajectory, Trajectory> associate(const Trajectory& est, const Trajectory& gt,
+                                            const AssociationOptions& options = {});
+
+}  // namespace rtslam::eval

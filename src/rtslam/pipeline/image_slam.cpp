@@ -1,0 +1,328 @@
+#include "rtslam/pipeline/image_slam.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <variant>
+
+#include <Eigen/Eigenvalues>
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/pipeline/known_landmarks.hpp"
+#include "rtslam/slam/system.hpp"
+
+namespace rtslam::pipeline {
+
+namespace {
+const char* policy_name(strategies::MapPolicyOptions::Policy p) {
+  return p == strategies::MapPolicyOptions::Policy::Global ? "global" : "visual_odometry";
+}
+}  // namespace
+
+void ImageSlamOptions::validate() const {
+  const std::string where = "slam";
+  require_bound(initial_velocity_std > 0.0, where, "initial_velocity_std", initial_velocity_std, "> 0");
+  require_bound(state_capacity >= 100, where, "state_capacity", state_capacity, ">= 100");
+  require_bound(state_capacity >= map.map_size, where, "state_capacity", state_capacity, ">= map_manager/map_size");
+  require_bound(max_frames >= 0, where, "max_frames", max_frames, ">= 0");
+  require_bound(camera >= 0, where, "camera", camera, ">= 0");
+  require_bound(rate_hz >= 0.0, where, "rate_hz", rate_hz, ">= 0");
+  require_bound(overlay_frame >= -1, where, "overlay_frame", overlay_frame, ">= -1");
+  if (overlay_frame >= 0 && overlay_path.empty()) throw ConfigError("slam/overlay_frame needs slam/overlay_path");
+  if (known_landmarks_convention != "scenelib" && known_landmarks_convention != "robot") {
+    throw ConfigError(fmt::format("slam/known_landmarks_convention = '{}' must be robot or scenelib",
+                                  known_landmarks_convention));
+  }
+  motion.validate();
+  search.validate();
+  map.validate();
+}
+
+void apply_image_slam_config(const YAML::Node& root, const std::string& where, ImageSlamOptions& o) {
+  YamlMap top(root, where);
+  {
+    YamlMap s = top.child("slam");
+    s.get("seed", o.seed);
+    s.get("initial_velocity_std", o.initial_velocity_std);
+    s.get("state_capacity", o.state_capacity);
+    s.get("max_frames", o.max_frames);
+    s.get("camera", o.camera);
+    s.get("init_from_groundtruth", o.init_from_groundtruth);
+    s.get("rate_hz", o.rate_hz);
+    s.get("known_landmarks", o.known_landmarks);
+    s.get("known_landmarks_convention", o.known_landmarks_convention);
+    s.get("overlay_frame", o.overlay_frame);
+    s.get("overlay_path", o.overlay_path);
+    s.finish();
+  }
+  {
+    YamlMap m = top.child("motion");
+    m.get("sigma_v", o.motion.sigma_v);
+    m.get("sigma_w", o.motion.sigma_w);
+    m.finish();
+  }
+  if (top.has("search")) {
+    YamlMap a = top.child("search");
+    o.search = strategies::ActiveSearchOptions::from_yaml(a);
+  }
+  {
+    YamlMap m = top.child("map_manager");
+    auto& mp = o.map;
+    std::string policy = policy_name(mp.policy);
+    m.get("policy", policy);
+    if (policy == "global") {
+      mp.policy = strategies::MapPolicyOptions::Policy::Global;
+    } else if (policy == "visual_odometry") {
+      mp.policy = strategies::MapPolicyOptions::Policy::VisualOdometry;
+    } else {
+      throw ConfigError(fmt::format("{}: map_manager/policy = '{}' must be global or visual_odometry", where, policy));
+    }
+    m.get("map_size", mp.map_size);
+    m.get("reparam_threshold", mp.reparam_threshold);
+    m.get("min_searches_to_judge", mp.min_searches_to_judge);
+    m.get("min_match_ratio", mp.min_match_ratio);
+    m.get("min_inlier_ratio", mp.min_inlier_ratio);
+    m.get("forget_after_frames", mp.forget_after_frames);
+    m.get("forget_unseen_after_frames", mp.forget_unseen_after_frames);
+    m.finish();
+  }
+  top.finish();
+  try {
+    o.validate();
+  } catch (const ConfigError& e) {
+    throw ConfigError(fmt::format("{}: {}", where, e.what()));
+  }
+}
+
+ImageSlamOptions load_image_slam_config(const std::string& path) {
+  ImageSlamOptions o;
+  apply_image_slam_config(load_yaml_file(path), path, o);
+  return o;
+}
+
+YAML::Node to_yaml(const ImageSlamOptions& o) {
+  YAML::Node root;
+  root["slam"]["seed"] = o.seed;
+  root["slam"]["initial_velocity_std"] = o.initial_velocity_std;
+  root["slam"]["state_capacity"] = o.state_capacity;
+  root["slam"]["max_frames"] = o.max_frames;
+  root["slam"]["camera"] = o.camera;
+  root["slam"]["init_from_groundtruth"] = o.init_from_groundtruth;
+  root["slam"]["rate_hz"] = o.rate_hz;
+  root["slam"]["known_landmarks"] = o.known_landmarks;
+  root["slam"]["known_landmarks_convention"] = o.known_landmarks_convention;
+  root["slam"]["overlay_frame"] = o.overlay_frame;
+  root["slam"]["overlay_path"] = o.overlay_path;
+  root["motion"]["sigma_v"] = o.motion.sigma_v;
+  root["motion"]["sigma_w"] = o.motion.sigma_w;
+  const auto& a = o.search;
+  YAML::Node s = root["search"];
+  s["sigma_px"] = a.sigma_px;
+  s["n_sigma"] = a.n_sigma;
+  s["max_updates"] = a.max_updates;
+  s["max_updates_ransac"] = a.max_updates_ransac;
+  s["ransac_ntries"] = a.ransac_ntries;
+  s["ransac_low_innov_px"] = a.ransac_low_innov_px;
+  s["gain_recomputations"] = a.gain_recomputations;
+  s["max_inits"] = a.max_inits;
+  s["max_search_size_px2"] = a.max_search_size_px2;
+  s["margin_px"] = a.margin_px;
+  s["init_patch_size"] = a.init_patch_size;
+  s["d_min"] = a.prior.d_min;
+  s["grid"]["cells_x"] = a.grid.cells_x;
+  s["grid"]["cells_y"] = a.grid.cells_y;
+  s["grid"]["margin_px"] = a.grid.margin_px;
+  const auto& h = a.harris;
+  s["harris"]["window_size"] = h.window_size;
+  s["harris"]["k"] = h.k;
+  s["harris"]["response"] = h.response == vision::HarrisResponse::harris ? "harris" : "min_eigen";
+  s["harris"]["harris_threshold"] = h.harris_threshold;
+  s["harris"]["min_eigen_threshold"] = h.min_eigen_threshold;
+  s["harris"]["edge_ratio"] = h.edge_ratio;
+  s["harris"]["border_px"] = h.border_px;
+  s["harris"]["subpixel"] = h.subpixel == vision::HarrisSubpixel::quadratic ? "quadratic" : "edge_lines";
+  const auto& z = a.zncc;
+  s["zncc"]["threshold"] = z.threshold;
+  s["zncc"]["patch_size"] = z.patch_size;
+  s["zncc"]["two_level"] = z.two_level;
+  s["zncc"]["partial_correlation"] = z.partial_correlation;
+  s["zncc"]["coarse_margin"] = z.coarse_margin;
+  s["zncc"]["coarse_candidates_spread"] = z.coarse_candidates_spread;
+  s["zncc"]["climb_radius"] = z.climb_radius;
+  s["zncc"]["partial_step_rows"] = z.partial_step_rows;
+  const auto& mp = o.map;
+  root["map_manager"]["policy"] = policy_name(mp.policy);
+  root["map_manager"]["map_size"] = mp.map_size;
+  root["map_manager"]["reparam_threshold"] = mp.reparam_threshold;
+  root["map_manager"]["min_searches_to_judge"] = mp.min_searches_to_judge;
+  root["map_manager"]["min_match_ratio"] = mp.min_match_ratio;
+  root["map_manager"]["min_inlier_ratio"] = mp.min_inlier_ratio;
+  root["map_manager"]["forget_after_frames"] = mp.forget_after_frames;
+  root["map_manager"]["forget_unseen_after_frames"] = mp.forget_unseen_after_frames;
+  return root;
+}
+
+models::CameraIntrinsics to_intrinsics(const io::CameraCalibration& cam) {
+  models::CameraIntrinsics c;
+  c.width = cam.width;
+  c.height = cam.height;
+  c.fx = cam.fx;
+  c.fy = cam.fy;
+  c.cx = cam.cx;
+  c.cy = cam.cy;
+  c.coeffs = cam.distortion_coeffs;
+  switch (cam.distortion) {
+    case io::DistortionModel::None: c.model = models::DistortionModel::None; break;
+    case io::DistortionModel::RadTan: c.model = models::DistortionModel::RadTan; break;
+    case io::DistortionModel::Equidistant: c.model = models::DistortionModel::Equidistant; break;
+    case io::DistortionModel::MonoSlamOneParam: c.model = models::DistortionModel::MonoSlam; break;
+  }
+  c.validate();
+  return c;
+}
+
+namespace {
+
+void write_overlay(const std::string& path, const cv::Mat& grey,
+                   const std::vector<strategies::ActiveSearchDataManager::FrameMatch>& matches, double n_sigma) {
+  cv::Mat img;
+  cv::cvtColor(grey, img, cv::COLOR_GRAY2BGR);
+  for (const auto& m : matches) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m.S);
+    const Eigen::Vector2d ev = es.eigenvalues().cwiseMax(0.0).cwiseSqrt() * n_sigma;
+    const Eigen::Vector2d axis = es.eigenvectors().col(1);
+    const double angle_deg = std::atan2(axis.y(), axis.x()) * 180.0 / M_PI;
+    cv::ellipse(img, cv::RotatedRect(cv::Point2f(static_cast<float>(m.h.x()), static_cast<float>(m.h.y())),
+                                     cv::Size2f(static_cast<float>(2 * ev[1]), static_cast<float>(2 * ev[0])),
+                                     static_cast<float>(angle_deg)),
+                cv::Scalar(255, 128, 0), 1, cv::LINE_AA);
+    if (!m.matched) continue;
+    const cv::Scalar colour = m.ransac_inlier ? cv::Scalar(0, 255, 255)
+                              : m.updated     ? cv::Scalar(0, 255, 0)
+                                              : cv::Scalar(0, 0, 255);
+    cv::circle(img, cv::Point(static_cast<int>(std::lround(m.z.x())), static_cast<int>(std::lround(m.z.y()))), 3,
+               colour, 1, cv::LINE_AA);
+  }
+  if (!cv::imwrite(path, img)) throw IoError(fmt::format("{}: cannot write the overlay image", path));
+}
+
+}  // namespace
+
+ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame) {
+  o.validate();
+  if (!ds.source) throw ConfigError(fmt::format("dataset '{}' has no measurement source", ds.name));
+  if (o.camera >= static_cast<int>(ds.rig.cameras.size())) {
+    throw ConfigError(fmt::format("slam/camera = {}: dataset '{}' has {} camera(s)", o.camera, ds.name,
+                                  ds.rig.cameras.size()));
+  }
+  const io::CameraCalibration& cal = ds.rig.cameras[static_cast<size_t>(o.camera)];
+  const models::CameraIntrinsics intr = to_intrinsics(cal);
+  const math::Pose T_RS = math::Pose::from_isometry(cal.T_RS);
+  std::optional<KnownLandmarkSet> known;
+  if (!o.known_landmarks.empty()) {
+    known = load_known_landmarks(o.known_landmarks, o.known_landmarks_convention);
+    if (o.known_landmarks_convention == "scenelib" &&
+        (T_RS.p.norm() > 1e-9 || T_RS.q.angularDistance(Eigen::Quaterniond::Identity()) > 1e-9)) {
+      throw ConfigError(fmt::format("slam/known_landmarks_convention = scenelib: the camera of '{}' must be the "
+                                    "robot (T_RS = identity); use 'robot' when T_RS carries the frame change",
+                                    ds.name));
+    }
+  }
+
+  slam::World world;
+  filter::StateOptions so;
+  so.tangent_capacity = o.state_capacity;
+  slam::Map& map = world.add_map(so);
+  auto map_manager = std::make_unique<strategies::PolicyMapManager>(o.map);
+  const strategies::PolicyMapManager& mm = *map_manager;
+  slam::System system(world, map, std::move(map_manager));
+  auto robot_ptr = std::make_unique<slam::ConstantVelocityRobot>(o.motion);
+  slam::Sensor& sensor = robot_ptr->add_sensor(std::make_unique<slam::PinholeSensor>(cal.name, intr, T_RS));
+  slam::Robot* robot = nullptr;
+  auto dm_ptr = std::make_unique<strategies::ActiveSearchDataManager>(o.search, mm, intr.width, intr.height,
+                                                                      o.seed * 7919 + 1);
+  const strategies::ActiveSearchDataManager& dm = *dm_ptr;
+  sensor.set_data_manager(std::move(dm_ptr));
+
+  ImageSlamResult result;
+  const auto total = ds.source->image_count();
+  const int n_total = total ? static_cast<int>(*total) : 0;
+  strategies::RawImage raw;
+  int done = 0;
+  while (auto m = ds.source->next()) {
+    const auto* frame = std::get_if<io::ImageFrame>(&*m);
+    if (frame == nullptr || frame->camera != o.camera) continue;
+    if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
+    if (robot == nullptr) {
+      // The gauge: the first pose (ground truth at the first image, or identity) with zero covariance.
+      Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
+      x0.segment<4>(3) << 1.0, 0.0, 0.0, 0.0;
+      if (o.init_from_groundtruth && ds.ground_truth && !ds.ground_truth->poses.empty()) {
+        const auto& gt = ds.ground_truth->poses;
+        const auto it = std::min_element(gt.begin(), gt.end(), [&](const StampedPose& a, const StampedPose& b) {
+          return std::abs(a.t - frame->t) < std::abs(b.t - frame->t);
+        });
+        x0.head<3>() = it->p_WR;
+        x0.segment<4>(3) = math::quat_to_wxyz(it->q_WR);
+      }
+      Eigen::MatrixXd P0 = Eigen::MatrixXd::Zero(12, 12);
+      P0.bottomRightCorner<6, 6>() =
+          o.initial_velocity_std * o.initial_velocity_std * Eigen::MatrixXd::Identity(6, 6);
+      if (known) {
+        x0 = known->robot_mean;
+        P0 = known->robot_cov;
+      }
+      robot = &map.add_robot(std::move(robot_ptr), x0, P0, frame->t);
+      if (known) result.known_landmarks = add_known_landmarks(map, sensor, *known);
+      raw.sensor_id = sensor.id();
+    }
+    raw.t = frame->t;
+    raw.image = vision::ImageView{frame->image.data, frame->image.cols, frame->image.rows,
+                                  static_cast<int>(frame->image.step[0])};
+    result.frames.push_back(system.process(raw));
+    if (done == o.overlay_frame) write_overlay(o.overlay_path, frame->image, dm.last_frame(), o.search.n_sigma);
+    StampedPose est;
+    est.t = frame->t;
+    const math::Pose T_WR = robot->pose();
+    est.p_WR = T_WR.p;
+    est.q_WR = T_WR.q;
+    est.v_WR = map.state().mean(robot->block()).segment<3>(7);
+    est.cov = map.state().cov(robot->block()).topLeftCorner<6, 6>();
+    result.estimate.poses.push_back(est);
+    ++done;
+    if (on_frame) on_frame(done, n_total);
+    if (o.max_frames > 0 && done >= o.max_frames) break;
+  }
+  if (robot == nullptr) throw DataError(fmt::format("dataset '{}' has no image of camera {}", ds.name, o.camera));
+  const Eigen::VectorXd& mean = map.state().mean_vector();
+  const Eigen::Vector3d p_WS = sensor.pose_in_world(mean).p;
+  for (const auto& l : map.landmarks()) {
+    result.landmarks_created = std::max(result.landmarks_created, l->id() + 1);
+    if (l->type() == slam::LandmarkType::EuclideanPoint) ++result.euclidean_final;
+    const Eigen::Vector3d p = l->position(mean);
+    Eigen::Matrix3d cov;
+    const auto P = map.state().cov(l->block());
+    if (l->type() == slam::LandmarkType::EuclideanPoint) {
+      cov = P;
+    } else {
+      const auto L = map.state().mean(l->block());
+      const double rho = L[6];
+      Eigen::Matrix<double, 3, 7> J;
+      J << Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity() / rho, -L.segment<3>(3) / (rho * rho);
+      cov = J * P * J.transpose();
+    }
+    result.landmark_ids.push_back(l->id());
+    result.landmark_positions.push_back(p);
+    result.landmark_covariances.push_back(cov);
+    result.landmark_depths.push_back((p - p_WS).norm());
+  }
+  result.landmarks_final = static_cast<int>(map.landmarks().size());
+  result.estimate.source = fmt::format("rtslam image SLAM on {}", ds.name);
+  return result;
+}
+
+}  // namespace rtslam::pipeline

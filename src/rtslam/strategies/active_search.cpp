@@ -1,0 +1,442 @@
+#include "rtslam/strategies/active_search.hpp"
+
+#include <algorithm>
+#include <any>
+#include <chrono>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/slam/landmark_init.hpp"
+#include "rtslam/slam/observation.hpp"
+#include "rtslam/slam/sensor.hpp"
+#include "rtslam/vision/warp.hpp"
+
+namespace rtslam::strategies {
+
+const PointDescriptor* point_descriptor(const slam::Landmark& lmk) {
+  const auto* p = std::any_cast<PointDescriptorPtr>(&lmk.descriptor);
+  return p ? p->get() : nullptr;
+}
+
+void ActiveSearchOptions::validate() const {
+  const std::string where = "active search";
+  require_bound(sigma_px > 0.0, where, "sigma_px", sigma_px, "> 0");
+  require_bound(n_sigma > 0.0, where, "n_sigma", n_sigma, "> 0");
+  require_bound(max_updates >= 0 && max_updates <= 32 * gain_recomputations, where, "max_updates", max_updates,
+                "in [0, 32 * gain_recomputations]");
+  require_bound(max_updates_ransac >= 0 && max_updates_ransac <= 32 && max_updates_ransac <= max_updates, where,
+                "max_updates_ransac", max_updates_ransac, "in [0, min(32, max_updates)]");
+  require_bound(ransac_ntries >= 0, where, "ransac_ntries", ransac_ntries, ">= 0");
+  require_bound(ransac_low_innov_px >= 0.0, where, "ransac_low_innov_px", ransac_low_innov_px, ">= 0");
+  require_bound(gain_recomputations >= 1, where, "gain_recomputations", gain_recomputations, ">= 1");
+  require_bound(max_inits >= 0, where, "max_inits", max_inits, ">= 0");
+  require_bound(max_search_size_px2 > 0.0, where, "max_search_size_px2", max_search_size_px2, "> 0");
+  require_bound(margin_px >= 0.0, where, "margin_px", margin_px, ">= 0");
+  require_bound(init_patch_size >= zncc.patch_size && init_patch_size % 2 == 1 && init_patch_size <= 101, where,
+                "init_patch_size", init_patch_size, "odd, >= zncc.patch_size and <= 101");
+  grid.validate();
+  prior.validate();
+  harris.validate();
+  zncc.validate();
+}
+
+ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
+  ActiveSearchOptions o;
+  map.get("sigma_px", o.sigma_px);
+  map.get("n_sigma", o.n_sigma);
+  map.get("max_updates", o.max_updates);
+  map.get("max_updates_ransac", o.max_updates_ransac);
+  map.get("ransac_ntries", o.ransac_ntries);
+  map.get("ransac_low_innov_px", o.ransac_low_innov_px);
+  map.get("gain_recomputations", o.gain_recomputations);
+  map.get("max_inits", o.max_inits);
+  map.get("max_search_size_px2", o.max_search_size_px2);
+  map.get("margin_px", o.margin_px);
+  map.get("init_patch_size", o.init_patch_size);
+  map.get("d_min", o.prior.d_min);
+  {
+    YamlMap g = map.child("grid");
+    g.get("cells_x", o.grid.cells_x);
+    g.get("cells_y", o.grid.cells_y);
+    g.get("margin_px", o.grid.margin_px);
+    g.finish();
+  }
+  if (map.has("harris")) {
+    YamlMap h = map.child("harris");
+    o.harris = vision::HarrisOptions::from_yaml(h);
+  }
+  if (map.has("zncc")) {
+    YamlMap z = map.child("zncc");
+    o.zncc = vision::ZnccOptions::from_yaml(z);
+  }
+  map.finish();
+  o.validate();
+  return o;
+}
+
+namespace {
+vision::ZnccOptions exhaustive(vision::ZnccOptions o) {
+  o.two_level = false;
+  return o;
+}
+constexpr int kMaxBatch = 32;
+}  // namespace
+
+ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, const slam::MapManager& map_manager,
+                                                 int width, int height, std::uint64_t seed)
+    : opt_((options.validate(), options)),
+      map_manager_(map_manager),
+      grid_(width, height, opt_.grid),
+      rng_(seed),
+      matcher_(opt_.zncc),
+      matcher_small_(exhaustive(opt_.zncc)),
+      harris_(opt_.harris) {
+  candidates_.reserve(512);
+  order_.reserve(512);
+  untried_.reserve(512);
+  support_.reserve(512);
+  best_support_.reserve(512);
+  support_z_.reserve(512);
+  best_support_z_.reserve(512);
+  report_.reserve(512);
+  batch_.reserve(kMaxBatch);
+  batch_blocks_.reserve(kMaxBatch + 1);
+  batch_H_.resize(2 * kMaxBatch, 32 + slam::kMaxLandmarkTangent * kMaxBatch);
+  batch_y_.resize(2 * kMaxBatch);
+  batch_R_.resize(2 * kMaxBatch, 2 * kMaxBatch);
+}
+
+bool ActiveSearchDataManager::predict_patch(const slam::Map& map, const slam::Sensor& sensor,
+                                            const slam::Observation& obs, int slot) {
+  const PointDescriptor* desc = point_descriptor(*obs.landmark);
+  const auto* cam_sensor = dynamic_cast<const slam::PinholeSensor*>(&sensor);
+  if (desc == nullptr || cam_sensor == nullptr) return false;
+  const models::PinholeCamera& camera = cam_sensor->camera();
+  const models::CameraIntrinsics& in = camera.intrinsics();
+  const Eigen::VectorXd& mean = map.state().mean_vector();
+  const math::Pose T_WS = sensor.pose_in_world(mean);
+  const Eigen::Vector3d p_W = obs.landmark->position(mean);
+  const vision::PinholeIntrinsics K{in.fx, in.fy, in.cx, in.cy};
+  const vision::RigidPose T_WC0{desc->T_WS0.q.toRotationMatrix(), desc->T_WS0.p};
+  const vision::RigidPose T_WC{T_WS.q.toRotationMatrix(), T_WS.p};
+  vision::LocalDistortion dist;
+  const bool distorted = in.model != models::DistortionModel::None;
+  if (distorted) {
+    const Eigen::Vector3d p_C = T_WS.inverse_transform(p_W);
+    if (!(p_C.z() > 0.0)) return false;
+    Eigen::Vector2d xy_d;
+    Eigen::Matrix2d J;
+    if (!camera.distort(p_C.head<2>() / p_C.z(), xy_d, &J)) return false;
+    const Eigen::Vector2d f(in.fx, in.fy);
+    dist.J_dist_undist = f.asDiagonal() * J * f.cwiseInverse().asDiagonal();
+    dist.J_dist_undist_0 = desc->J_dist_undist_0;
+    dist.centre0_dist_px = desc->z0_px;
+  }
+  if (slot >= static_cast<int>(warp_buf_.size())) {
+    warp_buf_.resize(static_cast<size_t>(slot) + 1);
+    patches_.resize(static_cast<size_t>(slot) + 1);
+  }
+  vision::Image& buf = warp_buf_[static_cast<size_t>(slot)];
+  const int n = opt_.zncc.patch_size;
+  if (buf.width() != n || buf.height() != n) buf.resize(n, n);
+  const vision::WarpResult w = vision::predict_appearance(desc->patch.view(), desc->patch_centre_px, K, T_WC0, T_WC,
+                                                          p_W, buf.mutable_view(), distorted ? &dist : nullptr);
+  // A prediction that needs much of its support from outside the stored patch is not trusted.
+  if (!w.ok || w.n_outside > n * n / 4) return false;
+  vision::Patch& patch = patches_[static_cast<size_t>(slot)];
+  patch.assign(buf.view());
+  return patch.centred_energy() > 0;
+}
+
+bool ActiveSearchDataManager::search(Candidate& c, const vision::SearchEllipse& region, vision::ZnccMatcher& matcher,
+                                     Eigen::Vector2d& z, double& score) {
+  const vision::MatchResult r = matcher.match(patches_[static_cast<size_t>(c.slot)], image_, region);
+  if (!r.found) return false;
+  z = Eigen::Vector2d(r.u, r.v);
+  score = r.score;
+  return true;
+}
+
+bool ActiveSearchDataManager::correct_batch(slam::Map& map, const std::vector<Candidate*>& batch) {
+  filter::State& state = map.state();
+  int k = 0;
+  int cols = 0;
+  int tr = 0;
+  batch_blocks_.clear();
+  for (Candidate* c : batch) {
+    slam::Observation& o = *c->obs;
+    if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true) || !o.projectable) continue;
+    if (batch_blocks_.empty()) {
+      batch_blocks_.push_back(o.blocks[0]);
+      tr = state.block(o.blocks[0]).tangent_size();
+      cols = tr;
+    }
+    batch_blocks_.push_back(o.blocks[1]);
+    cols += state.block(o.blocks[1]).tangent_size();
+    ++k;
+  }
+  if (k == 0) return false;
+  const int m = 2 * k;
+  auto H = batch_H_.topLeftCorner(m, cols);
+  H.setZero();
+  int row = 0;
+  int col = tr;
+  for (Candidate* c : batch) {
+    const slam::Observation& o = *c->obs;
+    if (!o.projectable) continue;
+    const int tl = state.block(o.blocks[1]).tangent_size();
+    H.block(row, 0, 2, tr) = o.H.leftCols(tr);
+    H.block(row, col, 2, tl) = o.H.rightCols(tl);
+    batch_y_.segment<2>(row) = c->z - o.h;
+    row += 2;
+    col += tl;
+  }
+  auto R = batch_R_.topLeftCorner(m, m);
+  R.setIdentity();
+  R *= opt_.sigma_px * opt_.sigma_px;
+  return state.correct(batch_blocks_, H, batch_y_.head(m), R).ok();
+}
+
+void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, const slam::RawData& raw, long frame,
+                                      slam::FrameStats& stats) {
+  using Clock = std::chrono::steady_clock;
+  const auto* img = dynamic_cast<const RawImage*>(&raw);
+  if (!img || img->image.empty()) throw ConfigError("active-search data manager: raw data is not an image");
+  const auto t0 = Clock::now();
+  image_ = img->image;
+  filter::State& state = map.state();
+  const double gate = opt_.n_sigma * opt_.n_sigma;
+  if (dx_.size() != state.covariance().rows()) dx_.setZero(state.covariance().rows());
+  if (hyp_mean_.size() != state.mean_vector().size()) hyp_mean_ = state.mean_vector();
+
+  // 1. Predict all observations; keep the visible ones with a reasonable search region and a predicted patch.
+  grid_.reset(rng_);
+  candidates_.clear();
+  for (const auto& l : map.landmarks()) {
+    slam::Observation* o = l->observation_of(sensor);
+    if (o == nullptr) continue;
+    if (!slam::predict_observation(state, state.mean_vector(), *o, opt_.margin_px, true)) continue;
+    slam::compute_innovation_covariance(state, *o, opt_.sigma_px);
+    o->counters.last_visible_frame = frame;
+    grid_.occupy(o->h);
+    const vision::Roi box = vision::SearchEllipse::from_covariance(o->h, o->S, opt_.n_sigma).bounding_box();
+    if (static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) continue;
+    const int slot = static_cast<int>(candidates_.size());
+    if (!predict_patch(map, sensor, *o, slot)) continue;
+    Candidate c;
+    c.obs = o;
+    c.slot = slot;
+    c.h0 = o->h;
+    c.S0 = o->S;
+    candidates_.push_back(c);
+  }
+  stats.visible = static_cast<int>(candidates_.size());
+  // Expected information: the largest innovation covariance first (stable: ties keep the map order).
+  order_.clear();
+  for (Candidate& c : candidates_) order_.push_back(&c);
+  std::stable_sort(order_.begin(), order_.end(),
+                   [](const Candidate* a, const Candidate* b) { return a->S0.determinant() > b->S0.determinant(); });
+  const auto t1 = Clock::now();
+
+  auto count_search = [&](Candidate& c) {
+    if (c.searched) return;
+    c.searched = true;
+    ++c.obs->counters.searched;
+    ++stats.searched;
+  };
+  auto count_match = [&](Candidate& c) {
+    if (c.matched) return;
+    c.matched = true;
+    ++c.obs->counters.matched;
+    ++stats.matched;
+  };
+  auto count_fail = [&](Candidate& c) {
+    c.done = true;
+    ++c.obs->counters.failed;
+  };
+  auto count_update = [&](Candidate& c, bool ok) {
+    c.done = true;
+    if (!ok) {
+      ++c.obs->counters.failed;
+      return;
+    }
+    c.updated = true;
+    ++c.obs->counters.updated;
+    c.obs->counters.last_updated_frame = frame;
+    ++stats.updated;
+  };
+
+  // 2. One-point RANSAC with data association.
+  if (opt_.ransac_ntries > 0 && opt_.max_updates_ransac >= 2 && candidates_.size() >= 2) {
+    untried_.clear();
+    for (Candidate* c : order_) untried_.push_back(c->slot);
+    best_support_.clear();
+    best_support_z_.clear();
+    for (int t = 0; t < opt_.ransac_ntries && !untried_.empty(); ++t) {
+      const auto k = std::uniform_int_distribution<size_t>(0, untried_.size() - 1)(rng_);
+      const int i = untried_[k];
+      untried_.erase(untried_.begin() + static_cast<std::ptrdiff_t>(k));
+      Candidate& ci = candidates_[static_cast<size_t>(i)];
+      ci.tried = true;
+      if (!ci.full_searched) {
+        ci.full_searched = true;
+        count_search(ci);
+        ci.full_matched = search(ci, vision::SearchEllipse::from_covariance(ci.h0, ci.S0, opt_.n_sigma), matcher_,
+                                 ci.z, ci.score);
+        if (ci.full_matched) count_match(ci);
+      }
+      if (!ci.full_matched) continue;
+      // The one-point state: mean only. (Observations still hold H and S of the first prediction.)
+      const slam::Observation& oi = *ci.obs;
+      const Eigen::Vector2d y = ci.z - ci.h0;
+      if (!state.mean_correction(oi.blocks, oi.H, y, oi.R, dx_).ok()) {
+        continue;
+      }
+      state.boxplus_all(state.mean_vector(), dx_, hyp_mean_);
+      support_.assign(1, i);
+      support_z_.assign(1, ci.z);
+      for (Candidate* cj : order_) {
+        if (cj->slot == i) continue;
+        slam::Observation& oj = *cj->obs;
+        if (!slam::predict_observation(state, hyp_mean_, oj, 0.0, false) || !oj.projectable) continue;
+        Eigen::Vector2d z;
+        double score = 0.0;
+        if (search(*cj, vision::SearchEllipse::box(oj.h, opt_.ransac_low_innov_px, opt_.ransac_low_innov_px),
+                   matcher_small_, z, score)) {
+          support_.push_back(cj->slot);
+          support_z_.push_back(z);
+        }
+      }
+      if (support_.size() > best_support_.size()) {
+        best_support_.swap(support_);
+        best_support_z_.swap(support_z_);
+      }
+    }
+    if (best_support_.size() >= 2) {
+      batch_.clear();
+      const size_t n = std::min(best_support_.size(), static_cast<size_t>(opt_.max_updates_ransac));
+      for (size_t s = 0; s < n; ++s) {
+        Candidate& c = candidates_[static_cast<size_t>(best_support_[s])];
+        count_search(c);
+        c.z = best_support_z_[s];
+        count_match(c);
+        c.inlier = true;
+        batch_.push_back(&c);
+      }
+      const bool ok = correct_batch(map, batch_);
+      for (Candidate* c : batch_) count_update(*c, ok);
+      stats.ransac_inliers = static_cast<int>(n);
+    }
+  }
+
+  // 3. Active search of the rest at the corrected state, gated, in N_RECOMP_GAINS batched rounds.
+  size_t next = 0;
+  for (int round = 0; round < opt_.gain_recomputations && next < order_.size() && stats.updated < opt_.max_updates;
+       ++round) {
+    batch_.clear();
+    const int left = opt_.max_updates - stats.updated;
+    const int rounds_left = opt_.gain_recomputations - round;
+    const int budget = std::min(kMaxBatch, (left + rounds_left - 1) / rounds_left);
+    while (next < order_.size() && static_cast<int>(batch_.size()) < budget) {
+      Candidate& c = *order_[next++];
+      if (c.done) continue;
+      slam::Observation& o = *c.obs;
+      if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true)) continue;
+      slam::compute_innovation_covariance(state, o, opt_.sigma_px);
+      const vision::SearchEllipse region = vision::SearchEllipse::from_covariance(o.h, o.S, opt_.n_sigma);
+      const vision::Roi box = region.bounding_box();
+      if (static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) continue;
+      bool found = c.full_matched;  // a RANSAC hypothesis that lost keeps its full-ellipse match (gated below)
+      if (!c.full_searched) {
+        count_search(c);
+        found = search(c, region, matcher_, c.z, c.score);
+      }
+      if (!found) {
+        count_fail(c);
+        continue;
+      }
+      count_match(c);
+      o.y = c.z - o.h;
+      o.mahalanobis2 = o.y.dot(o.S.ldlt().solve(o.y));
+      if (!(o.mahalanobis2 <= gate)) {
+        count_fail(c);
+        continue;
+      }
+      batch_.push_back(&c);
+    }
+    if (batch_.empty()) continue;
+    const bool ok = correct_batch(map, batch_);
+    for (Candidate* c : batch_) count_update(*c, ok);
+  }
+  const auto t2 = Clock::now();
+
+  // 4. Initialization in the empty cells of the moving grid.
+  initialize(map, sensor, frame, stats);
+  const auto t3 = Clock::now();
+
+  report_.clear();
+  for (const Candidate& c : candidates_) {
+    FrameMatch m;
+    m.landmark_id = c.obs->landmark->id();
+    m.h = c.h0;
+    m.S = c.S0;
+    m.z = c.z;
+    m.score = c.score;
+    m.searched = c.searched;
+    m.matched = c.matched;
+    m.ransac_inlier = c.inlier;
+    m.updated = c.updated;
+    report_.push_back(m);
+  }
+  stats.time_predict_ms += std::chrono::duration<double, std::milli>(t1 - t0).count();
+  stats.time_update_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+  stats.time_init_ms = std::chrono::duration<double, std::milli>(t3 - t2).count();
+}
+
+void ActiveSearchDataManager::initialize(slam::Map& map, slam::Sensor& sensor, long frame, slam::FrameStats& stats) {
+  const auto* cam_sensor = dynamic_cast<const slam::PinholeSensor*>(&sensor);
+  if (cam_sensor == nullptr) return;
+  const models::PinholeCamera& camera = cam_sensor->camera();
+  const models::CameraIntrinsics& in = camera.intrinsics();
+  const int half = opt_.init_patch_size / 2;
+  int inits = 0;
+  for (int cell : grid_.empty_cells(rng_)) {
+    if (inits >= opt_.max_inits || !map_manager_.has_room(map, 7)) break;
+    const Eigen::Vector4d r = grid_.cell_rect(cell);
+    const int x0 = static_cast<int>(std::ceil(r[0])), y0 = static_cast<int>(std::ceil(r[1]));
+    const int x1 = static_cast<int>(std::ceil(r[2])), y1 = static_cast<int>(std::ceil(r[3]));
+    const vision::Roi roi{x0, y0, x1 - x0, y1 - y0};
+    if (roi.empty()) continue;
+    const auto corner = harris_.best_corner(image_, roi);
+    if (!corner) continue;
+    if (corner->u_px - half < 0 || corner->v_px - half < 0 || corner->u_px + half >= image_.width ||
+        corner->v_px + half >= image_.height) {
+      continue;
+    }
+    const Eigen::Vector2d z(corner->u, corner->v);
+    Eigen::Vector3d ray;
+    if (!camera.unproject(z, ray)) continue;
+    Eigen::Vector2d xy_d;
+    Eigen::Matrix2d J = Eigen::Matrix2d::Identity();
+    if (!camera.distort(ray.head<2>(), xy_d, &J)) continue;
+    const math::Pose T_WS = sensor.pose_in_world(map.state().mean_vector());
+    slam::Landmark* l = slam::init_ahp_landmark(map, sensor, z, opt_.sigma_px, opt_.prior, frame);
+    if (l == nullptr) break;
+    auto desc = std::make_shared<PointDescriptor>();
+    desc->patch = vision::Image::copy_of(
+        image_.roi(corner->u_px - half, corner->v_px - half, opt_.init_patch_size, opt_.init_patch_size));
+    desc->patch_centre_px = Eigen::Vector2d(corner->u_px, corner->v_px);
+    desc->z0_px = z;
+    const Eigen::Vector2d f(in.fx, in.fy);
+    desc->J_dist_undist_0 = f.asDiagonal() * J * f.cwiseInverse().asDiagonal();
+    desc->T_WS0 = T_WS;
+    l->descriptor = PointDescriptorPtr(std::move(desc));
+    grid_.occupy(z);
+    ++inits;
+  }
+  stats.initialized = inits;
+}
+
+}  // namespace rtslam::strategies

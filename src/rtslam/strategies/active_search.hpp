@@ -1,0 +1,157 @@
+#pragma once
+// The image data manager for point landmarks (paper, sections 3 and 4.1; ../shared/MATH.md "One-point RANSAC").
+// Per image of its camera:
+//  1. predict every landmark's observation (h, compressed H, S = H P Hᵀ + R) and keep the visible ones whose 3σ
+//     search box is not larger than `max_search_size_px2`; warp each landmark's initial patch into its predicted
+//     appearance (plane homography, local affine model of the lens distortion);
+//  2. one-point RANSAC doing the data association: up to `ransac_ntries` hypotheses, each from one candidate drawn
+//     at random (seeded) among the untried ones and matched by ZNCC in its full n_sigma ellipse; the one-point
+//     mean x_i = x ⊕ K_i (z_i − h_i) re-predicts every other candidate, which is searched only in the small box of
+//     half-size `ransac_low_innov_px` around that prediction; the largest support set (ties: the earlier) is
+//     corrected in one batched update when it holds at least 2 observations (at most `max_updates_ransac`);
+//  3. the remaining candidates, by expected information (largest det S first), are re-predicted at the corrected
+//     state, searched in their (now small) n_sigma ellipses, gated by Mahalanobis distance (n_sigma²) and corrected
+//     in `gain_recomputations` batched rounds, until `max_updates` updates in the frame;
+//  4. initialization: in the empty cells of the randomly moving grid, the best Harris corner of the cell becomes an
+//     undelayed AHP landmark (at most `max_inits` per frame, if the map manager has room); its descriptor is the
+//     `init_patch_size` patch around the corner plus the sensor pose T_WS it was seen from.
+// Unmatched and gated-out observations count as failures for the map manager. The same seed and images give the
+// same result. Buffers are reserved once: a frame allocates nothing after warm-up.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rtslam/core/random.hpp"
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/math/rotation.hpp"
+#include "rtslam/models/landmarks/ahp.hpp"
+#include "rtslam/slam/managers.hpp"
+#include "rtslam/slam/map.hpp"
+#include "rtslam/strategies/init_grid.hpp"
+#include "rtslam/vision/harris.hpp"
+#include "rtslam/vision/image.hpp"
+#include "rtslam/vision/zncc.hpp"
+
+namespace rtslam::strategies {
+
+/// One grey image of one camera (non-owning: the pixels must live while process() runs).
+struct RawImage final : slam::RawData {
+  vision::ImageView image;
+};
+
+/// The appearance descriptor of a point landmark: its initial patch (odd square), the image pixel of the patch's
+/// centre, the landmark's (distorted, sub-pixel) pixel in that image, and the sensor pose the patch was taken from.
+struct PointDescriptor {
+  vision::Image patch;
+  Eigen::Vector2d patch_centre_px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d z0_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d J_dist_undist_0 = Eigen::Matrix2d::Identity();  // pixel-level, at z0 (identity: no distortion)
+  math::Pose T_WS0;
+};
+using PointDescriptorPtr = std::shared_ptr<const PointDescriptor>;
+
+/// The descriptor of a landmark made by this data manager (or by a known-landmark initialization), or nullptr.
+const PointDescriptor* point_descriptor(const slam::Landmark& lmk);
+
+struct ActiveSearchOptions {
+  double sigma_px = 1.0;              // measurement noise (px), RT-SLAM PIX_NOISE
+  double n_sigma = 3.0;               // search ellipse and gate (RT-SLAM MAHALANOBIS_TH)
+  int max_updates = 25;               // RT-SLAM N_UPDATES_TOTAL
+  int max_updates_ransac = 22;        // RT-SLAM N_UPDATES_RANSAC (at most 32: one batched correction)
+  int ransac_ntries = 6;              // RT-SLAM RANSAC_NTRIES (0 disables RANSAC: plain gated active search)
+  double ransac_low_innov_px = 1.0;   // RT-SLAM RANSAC_LOW_INNOV: half-size of the hypothesis support box (px)
+  int gain_recomputations = 3;        // RT-SLAM N_RECOMP_GAINS
+  int max_inits = 10;                 // RT-SLAM N_INIT
+  double max_search_size_px2 = 10000; // RT-SLAM MAX_SEARCH_SIZE: skip larger search boxes (px²)
+  double margin_px = 8.0;             // predictions closer to the border are not visible
+  int init_patch_size = 31;           // descriptor patch (odd); the matched patch size is zncc.patch_size
+  InitGridOptions grid;               // RT-SLAM GRID_HCELLS 6, GRID_VCELLS 4
+  models::AhpPrior prior;             // RT-SLAM D_MIN 0.5 m
+  vision::HarrisOptions harris;
+  vision::ZnccOptions zncc;           // MATCH_TH 0.90, patch 15
+  void validate() const;
+  /// Keys: sigma_px, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_low_innov_px,
+  /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min,
+  /// grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors; validates.
+  static ActiveSearchOptions from_yaml(YamlMap& map);
+};
+
+class ActiveSearchDataManager final : public slam::DataManager {
+ public:
+  ActiveSearchDataManager(ActiveSearchOptions options, const slam::MapManager& map_manager, int width, int height,
+                          std::uint64_t seed);
+  void process(slam::Map& map, slam::Sensor& sensor, const slam::RawData& raw, long frame,
+               slam::FrameStats& stats) override;
+  std::string name() const override { return "active-search"; }
+  const ActiveSearchOptions& options() const { return opt_; }
+
+  /// What happened to one visible observation in the last frame (overlays, tests).
+  struct FrameMatch {
+    int landmark_id = -1;
+    Eigen::Vector2d h = Eigen::Vector2d::Zero();  // first prediction of the frame
+    Eigen::Matrix2d S = Eigen::Matrix2d::Identity();
+    Eigen::Vector2d z = Eigen::Vector2d::Zero();  // measurement (when matched)
+    double score = 0.0;
+    bool searched = false;
+    bool matched = false;
+    bool ransac_inlier = false;  // in the best support set
+    bool updated = false;        // used in a correction
+  };
+  const std::vector<FrameMatch>& last_frame() const { return report_; }
+
+ private:
+  struct Candidate {
+    slam::Observation* obs = nullptr;
+    int slot = 0;                  // index of its predicted patch
+    Eigen::Vector2d h0 = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d S0 = Eigen::Matrix2d::Identity();
+    bool tried = false;            // drawn as a RANSAC hypothesis
+    bool full_searched = false;    // searched in its full ellipse (result below)
+    bool full_matched = false;
+    bool searched = false;
+    bool matched = false;
+    bool done = false;             // updated, or failed for good in this frame
+    Eigen::Vector2d z = Eigen::Vector2d::Zero();
+    double score = 0.0;
+    bool inlier = false;
+    bool updated = false;
+  };
+
+  bool predict_patch(const slam::Map& map, const slam::Sensor& sensor, const slam::Observation& obs, int slot);
+  /// Searches a candidate's predicted patch in `region`; fills z/score on success.
+  bool search(Candidate& c, const vision::SearchEllipse& region, vision::ZnccMatcher& matcher,
+              Eigen::Vector2d& z, double& score);
+  /// One batched correction of the given candidates (measurements z, re-predicted at the current mean).
+  bool correct_batch(slam::Map& map, const std::vector<Candidate*>& batch);
+  void initialize(slam::Map& map, slam::Sensor& sensor, long frame, slam::FrameStats& stats);
+
+  ActiveSearchOptions opt_;
+  const slam::MapManager& map_manager_;
+  InitGrid grid_;
+  Rng rng_;
+  vision::ZnccMatcher matcher_;        // full ellipses (two-level as configured)
+  vision::ZnccMatcher matcher_small_;  // tiny RANSAC boxes: exhaustive
+  vision::HarrisDetector harris_;
+  vision::ImageView image_;
+  std::vector<Candidate> candidates_;
+  std::vector<Candidate*> order_;
+  std::vector<vision::Image> warp_buf_;
+  std::vector<vision::Patch> patches_;
+  std::vector<int> untried_;
+  std::vector<int> support_;
+  std::vector<int> best_support_;
+  std::vector<Eigen::Vector2d> support_z_;
+  std::vector<Eigen::Vector2d> best_support_z_;
+  std::vector<Candidate*> batch_;
+  std::vector<filter::BlockId> batch_blocks_;
+  Eigen::MatrixXd batch_H_;
+  Eigen::VectorXd batch_y_;
+  Eigen::MatrixXd batch_R_;
+  Eigen::VectorXd dx_;
+  Eigen::VectorXd hyp_mean_;
+  std::vector<FrameMatch> report_;
+};
+
+}  // namespace rtslam::strategies

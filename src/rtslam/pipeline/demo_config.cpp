@@ -4,14 +4,10 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/pipeline/config_common.hpp"
 
 namespace rtslam::pipeline {
 
-namespace {
-const char* policy_name(strategies::MapPolicyOptions::Policy p) {
-  return p == strategies::MapPolicyOptions::Policy::Global ? "global" : "visual_odometry";
-}
-}  // namespace
 
 void apply_demo_config(const YAML::Node& root, const std::string& where, PointDemoOptions& o) {
   YamlMap top(root, where);
@@ -26,12 +22,7 @@ void apply_demo_config(const YAML::Node& root, const std::string& where, PointDe
     d.get("state_capacity", o.state_capacity);
     d.finish();
   }
-  {
-    YamlMap m = top.child("motion");
-    m.get("sigma_v", o.motion.sigma_v);
-    m.get("sigma_w", o.motion.sigma_w);
-    m.finish();
-  }
+  read_motion(top.child("motion"), o.motion);
   {
     YamlMap a = top.child("association");
     auto& ka = o.association;
@@ -49,27 +40,7 @@ void apply_demo_config(const YAML::Node& root, const std::string& where, PointDe
     g.finish();
     a.finish();
   }
-  {
-    YamlMap m = top.child("map_manager");
-    auto& mp = o.map;
-    std::string policy = policy_name(mp.policy);
-    m.get("policy", policy);
-    if (policy == "global") {
-      mp.policy = strategies::MapPolicyOptions::Policy::Global;
-    } else if (policy == "visual_odometry") {
-      mp.policy = strategies::MapPolicyOptions::Policy::VisualOdometry;
-    } else {
-      throw ConfigError(fmt::format("{}: map_manager/policy = '{}' must be global or visual_odometry", where, policy));
-    }
-    m.get("map_size", mp.map_size);
-    m.get("reparam_threshold", mp.reparam_threshold);
-    m.get("min_searches_to_judge", mp.min_searches_to_judge);
-    m.get("min_match_ratio", mp.min_match_ratio);
-    m.get("min_inlier_ratio", mp.min_inlier_ratio);
-    m.get("forget_after_frames", mp.forget_after_frames);
-    m.get("forget_unseen_after_frames", mp.forget_unseen_after_frames);
-    m.finish();
-  }
+  read_map_policy(top.child("map_manager"), o.map);
   top.finish();
   try {
     o.validate();
@@ -93,8 +64,7 @@ YAML::Node to_yaml(const PointDemoOptions& o) {
   root["demo"]["sigma_px"] = o.sigma_px;
   root["demo"]["initial_velocity_std"] = o.initial_velocity_std;
   root["demo"]["state_capacity"] = o.state_capacity;
-  root["motion"]["sigma_v"] = o.motion.sigma_v;
-  root["motion"]["sigma_w"] = o.motion.sigma_w;
+  root["motion"] = motion_to_yaml(o.motion);
   const auto& ka = o.association;
   root["association"]["sigma_px"] = ka.sigma_px;
   root["association"]["n_sigma"] = ka.n_sigma;
@@ -106,15 +76,7 @@ YAML::Node to_yaml(const PointDemoOptions& o) {
   root["association"]["grid"]["cells_x"] = ka.grid.cells_x;
   root["association"]["grid"]["cells_y"] = ka.grid.cells_y;
   root["association"]["grid"]["margin_px"] = ka.grid.margin_px;
-  const auto& mp = o.map;
-  root["map_manager"]["policy"] = policy_name(mp.policy);
-  root["map_manager"]["map_size"] = mp.map_size;
-  root["map_manager"]["reparam_threshold"] = mp.reparam_threshold;
-  root["map_manager"]["min_searches_to_judge"] = mp.min_searches_to_judge;
-  root["map_manager"]["min_match_ratio"] = mp.min_match_ratio;
-  root["map_manager"]["min_inlier_ratio"] = mp.min_inlier_ratio;
-  root["map_manager"]["forget_after_frames"] = mp.forget_after_frames;
-  root["map_manager"]["forget_unseen_after_frames"] = mp.forget_unseen_after_frames;
+  root["map_manager"] = map_policy_to_yaml(o.map);
   return root;
 }
 

@@ -12,16 +12,12 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/pipeline/config_common.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
 #include "rtslam/slam/system.hpp"
 
 namespace rtslam::pipeline {
 
-namespace {
-const char* policy_name(strategies::MapPolicyOptions::Policy p) {
-  return p == strategies::MapPolicyOptions::Policy::Global ? "global" : "visual_odometry";
-}
-}  // namespace
 
 void ImageSlamOptions::validate() const {
   const std::string where = "slam";
@@ -59,37 +55,12 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     s.get("overlay_path", o.overlay_path);
     s.finish();
   }
-  {
-    YamlMap m = top.child("motion");
-    m.get("sigma_v", o.motion.sigma_v);
-    m.get("sigma_w", o.motion.sigma_w);
-    m.finish();
-  }
+  read_motion(top.child("motion"), o.motion);
   if (top.has("search")) {
     YamlMap a = top.child("search");
     o.search = strategies::ActiveSearchOptions::from_yaml(a);
   }
-  {
-    YamlMap m = top.child("map_manager");
-    auto& mp = o.map;
-    std::string policy = policy_name(mp.policy);
-    m.get("policy", policy);
-    if (policy == "global") {
-      mp.policy = strategies::MapPolicyOptions::Policy::Global;
-    } else if (policy == "visual_odometry") {
-      mp.policy = strategies::MapPolicyOptions::Policy::VisualOdometry;
-    } else {
-      throw ConfigError(fmt::format("{}: map_manager/policy = '{}' must be global or visual_odometry", where, policy));
-    }
-    m.get("map_size", mp.map_size);
-    m.get("reparam_threshold", mp.reparam_threshold);
-    m.get("min_searches_to_judge", mp.min_searches_to_judge);
-    m.get("min_match_ratio", mp.min_match_ratio);
-    m.get("min_inlier_ratio", mp.min_inlier_ratio);
-    m.get("forget_after_frames", mp.forget_after_frames);
-    m.get("forget_unseen_after_frames", mp.forget_unseen_after_frames);
-    m.finish();
-  }
+  read_map_policy(top.child("map_manager"), o.map);
   top.finish();
   try {
     o.validate();
@@ -117,8 +88,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["slam"]["known_landmarks_convention"] = o.known_landmarks_convention;
   root["slam"]["overlay_frame"] = o.overlay_frame;
   root["slam"]["overlay_path"] = o.overlay_path;
-  root["motion"]["sigma_v"] = o.motion.sigma_v;
-  root["motion"]["sigma_w"] = o.motion.sigma_w;
+  root["motion"] = motion_to_yaml(o.motion);
   const auto& a = o.search;
   YAML::Node s = root["search"];
   s["sigma_px"] = a.sigma_px;
@@ -154,15 +124,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   s["zncc"]["coarse_candidates_spread"] = z.coarse_candidates_spread;
   s["zncc"]["climb_radius"] = z.climb_radius;
   s["zncc"]["partial_step_rows"] = z.partial_step_rows;
-  const auto& mp = o.map;
-  root["map_manager"]["policy"] = policy_name(mp.policy);
-  root["map_manager"]["map_size"] = mp.map_size;
-  root["map_manager"]["reparam_threshold"] = mp.reparam_threshold;
-  root["map_manager"]["min_searches_to_judge"] = mp.min_searches_to_judge;
-  root["map_manager"]["min_match_ratio"] = mp.min_match_ratio;
-  root["map_manager"]["min_inlier_ratio"] = mp.min_inlier_ratio;
-  root["map_manager"]["forget_after_frames"] = mp.forget_after_frames;
-  root["map_manager"]["forget_unseen_after_frames"] = mp.forget_unseen_after_frames;
+  root["map_manager"] = map_policy_to_yaml(o.map);
   return root;
 }
 

@@ -1,0 +1,22 @@
+#pragma once
+// YAML sections shared by every pipeline configuration (the demo's and the image pipeline's): the
+// constant-velocity motion model (`motion`) and the map manager (`map_manager`). Strict: unknown keys and bad
+// values are ConfigErrors naming the file and key.
+#include <yaml-cpp/yaml.h>
+
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/models/robots/constant_velocity.hpp"
+#include "rtslam/strategies/map_policies.hpp"
+
+namespace rtslam::pipeline {
+
+/// motion: {sigma_v, sigma_w}
+void read_motion(YamlMap section, models::ConstantVelocityParams& motion);
+YAML::Node motion_to_yaml(const models::ConstantVelocityParams& motion);
+
+/// map_manager: {policy: global|visual_odometry, map_size, reparam_threshold, min_searches_to_judge,
+///               min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
+void read_map_policy(YamlMap section, strategies::MapPolicyOptions& map);
+YAML::Node map_policy_to_yaml(const strategies::MapPolicyOptions& map);
+
+}  // namespace rtslam::pipeline

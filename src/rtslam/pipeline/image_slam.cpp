@@ -13,6 +13,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/pipeline/config_common.hpp"
+#include "rtslam/sim/simulation.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
 #include "rtslam/slam/system.hpp"
 
@@ -129,20 +130,8 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
 }
 
 models::CameraIntrinsics to_intrinsics(const io::CameraCalibration& cam) {
-  models::CameraIntrinsics c;
-  c.width = cam.width;
-  c.height = cam.height;
-  c.fx = cam.fx;
-  c.fy = cam.fy;
-  c.cx = cam.cx;
-  c.cy = cam.cy;
-  c.coeffs = cam.distortion_coeffs;
-  switch (cam.distortion) {
-    case io::DistortionModel::None: c.model = models::DistortionModel::None; break;
-    case io::DistortionModel::RadTan: c.model = models::DistortionModel::RadTan; break;
-    case io::DistortionModel::Equidistant: c.model = models::DistortionModel::Equidistant; break;
-    case io::DistortionModel::MonoSlamOneParam: c.model = models::DistortionModel::MonoSlam; break;
-  }
+  // The io → models conversion lives with the simulator (which needs it too); a dataset's camera is validated here.
+  models::CameraIntrinsics c = sim::to_intrinsics(cam);
   c.validate();
   return c;
 }

@@ -1,13 +1,14 @@
-// rtslam run: SLAM on a dataset, or (no --dataset) on the built-in simulated demo.
-// With --dataset: monocular image SLAM (src/rtslam/pipeline/image_slam.hpp, docs/configuration.md) on the dataset's
-// camera; it writes config.yaml, trajectory.txt, trajectory.csv, groundtruth.txt (when the dataset has one),
-// frames.csv, map.ply, summary.json and, with --overlay-frame, a PNG overlay.
-// The demo is the walking skeleton: simulated point measurements with known association (see
-// src/rtslam/pipeline/point_demo.hpp); it writes trajectory.txt, trajectory.csv, groundtruth.txt, frames.csv
-// and summary.json to --out and prints a summary.
+// rtslam run: monocular image SLAM (src/rtslam/pipeline/image_slam.hpp, docs/configuration.md) on a dataset's
+// camera, or, without --dataset (or with --dataset sim:PRESET), on the simulator's images rendered on the fly
+// (default preset: handheld). It writes config.yaml, trajectory.txt, trajectory.csv, groundtruth.txt (when the
+// input has one), frames.csv, map.ply, summary.json and, with --overlay-frame, a PNG overlay.
+// --points-demo runs the walking skeleton instead: simulated point measurements with known association
+// (src/rtslam/pipeline/point_demo.hpp), which writes trajectory.txt, trajectory.csv, groundtruth.txt, frames.csv
+// and summary.json.
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -36,6 +37,7 @@ struct RunOptions {
   std::optional<double> rate_hz;
   std::optional<int> points;
   std::optional<int> overlay_frame;
+  bool points_demo = false;
   bool quiet = false;
 };
 
@@ -108,7 +110,7 @@ void run_demo(const RunOptions& ro) {
   io::write_summary_json(ro.out + "/summary.json", summary);
 
   std::cout << fmt::format(
-      "rtslam demo (seed {}): {} frames, {:.1f} s\n"
+      "rtslam points demo (simulated points, known association; seed {}): {} frames, {:.1f} s\n"
       "  landmarks: {} in map at the end ({} Euclidean), {} created\n"
       "  per-frame time: median {:.3f} ms, p90 {:.3f} ms, max {:.3f} ms\n"
       "  ATE (Sim(3) aligned): RMSE {:.4f} m = {:.3f} % of the {:.2f} m path; estimated scale {:.4f}\n"
@@ -118,11 +120,18 @@ void run_demo(const RunOptions& ro) {
       ev.sim3_scale, ro.out);
 }
 
-// Monocular image SLAM on a dataset (src/rtslam/pipeline/image_slam.hpp): camera 0 of the rig, IMU ignored.
+// Monocular image SLAM on a dataset or the simulator (src/rtslam/pipeline/image_slam.hpp): camera 0 of the rig,
+// IMU ignored.
 void run_dataset(const RunOptions& ro) {
   pipeline::ImageSlamOptions o =
       ro.config.empty() ? pipeline::ImageSlamOptions{} : pipeline::load_image_slam_config(ro.config);
+  const bool simulated = ro.dataset.empty() || ro.dataset.rfind("sim:", 0) == 0;
+  if (!ro.dataset.empty() && simulated) o.sim_preset = ro.dataset.substr(4);
   if (ro.seed) o.seed = *ro.seed;
+  if (ro.duration_s) {
+    if (!simulated) throw ConfigError("--duration applies to simulated runs only (no --dataset, or sim:PRESET)");
+    o.sim_duration_s = *ro.duration_s;
+  }
   if (ro.overlay_frame) {
     o.overlay_frame = *ro.overlay_frame;
     o.overlay_path = fmt::format("{}/overlay_{:05d}.png", ro.out, *ro.overlay_frame);
@@ -133,10 +142,10 @@ void run_dataset(const RunOptions& ro) {
     return;
   }
   io::DatasetOptions dopt;
-  dopt.use_imu = false;
+  dopt.use_imu = o.robot == "inertial";
   dopt.cameras = {o.camera};
   dopt.rate_hz = ro.rate_hz ? *ro.rate_hz : o.rate_hz;
-  io::Dataset ds = io::open_dataset(ro.dataset, dopt);
+  io::Dataset ds = simulated ? pipeline::make_sim_dataset(o) : io::open_dataset(ro.dataset, dopt);
   std::filesystem::create_directories(ro.out);
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
 
@@ -173,7 +182,22 @@ void run_dataset(const RunOptions& ro) {
   const io::Percentiles timing = io::percentiles(times);
 
   nlohmann::json summary;
-  summary["mode"] = "monocular EKF-SLAM on images: active search, one-point RANSAC, AHP landmarks";
+  summary["mode"] = result.inertial ? "inertial-monocular EKF-SLAM: IMU-driven prediction, active search, one-point "
+                                      "RANSAC, AHP landmarks"
+                                    : "monocular EKF-SLAM on images: active search, one-point RANSAC, AHP landmarks";
+  if (result.inertial) {
+    const auto v3 = [](const Eigen::Vector3d& v) { return std::vector<double>{v.x(), v.y(), v.z()}; };
+    summary["imu"] = {{"start", result.inertial_start},
+                      {"samples", result.imu_samples},
+                      {"samples_integrated", result.imu_samples_integrated},
+                      {"gyro_saturated_samples", result.imu_gyro_saturated},
+                      {"accel_saturated_samples", result.imu_accel_saturated},
+                      {"images_before_start", result.images_before_start},
+                      {"images_not_covered", result.images_not_covered},
+                      {"gravity_W", v3(result.gravity_W)},
+                      {"accel_bias", v3(result.accel_bias)},
+                      {"gyro_bias", v3(result.gyro_bias)}};
+  }
   summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
   summary["input"] = ds.source->stats().to_json();
   summary["seed"] = o.seed;
@@ -182,7 +206,19 @@ void run_dataset(const RunOptions& ro) {
                           {"created", result.landmarks_created},
                           {"euclidean_final", result.euclidean_final}};
   summary["timing_ms"] = io::to_json(timing);
-  double ate = -1.0;
+  // Matched landmarks per frame, over every frame and after the first second (the map is being built then).
+  int min_matched = std::numeric_limits<int>::max(), min_matched_after_1s = std::numeric_limits<int>::max();
+  for (const auto& s : result.frames) {
+    min_matched = std::min(min_matched, s.matched);
+    if (!result.frames.empty() && s.t - result.frames.front().t >= 1'000'000'000) {
+      min_matched_after_1s = std::min(min_matched_after_1s, s.matched);
+    }
+  }
+  if (!result.frames.empty()) {
+    summary["matched_min"] = min_matched;
+    if (min_matched_after_1s != std::numeric_limits<int>::max()) summary["matched_min_after_1s"] = min_matched_after_1s;
+  }
+  std::string accuracy_line;
   if (ds.ground_truth && result.estimate.poses.size() >= 3) {
     eval::EvalOptions eo;
     eo.align = eval::Alignment::Sim3;
@@ -190,20 +226,32 @@ void run_dataset(const RunOptions& ro) {
     try {
       const eval::EvalResult ev = eval::evaluate(result.estimate, *ds.ground_truth, eo);
       summary["accuracy"] = eval::to_json(ev, eo);
-      ate = ev.ate.trans_m.rmse;
+      const double ate = ev.ate.trans_m.rmse;
+      const double pct = ev.path_length_m > 0 ? 100.0 * ate / ev.path_length_m : 0.0;
+      summary["ate_percent_of_path"] = pct;
+      accuracy_line = fmt::format("  ATE (Sim(3) aligned): RMSE {:.4f} m = {:.3f} % of the {:.2f} m path; scale {:.4f}\n",
+                                  ate, pct, ev.path_length_m, ev.sim3_scale);
     } catch (const Error& e) {
       summary["accuracy_error"] = e.what();
+      accuracy_line = fmt::format("  ATE not computed: {}\n", e.what());
     }
   }
   io::write_summary_json(ro.out + "/summary.json", summary);
   std::cout << fmt::format(
-      "rtslam run on {} ({}): {} frames\n"
-      "  landmarks: {} in map at the end ({} Euclidean), {} created\n"
+      "rtslam run on {} ({}), seed {}: {} frames\n"
+      "  landmarks: {} in map at the end ({} Euclidean), {} created; matched per frame: min {} ({} after 1 s)\n"
       "  per-frame time: median {:.3f} ms, p90 {:.3f} ms, max {:.3f} ms\n"
-      "{}  outputs in {}/\n",
-      ds.name, ds.kind, result.frames.size(), result.landmarks_final, result.euclidean_final,
-      result.landmarks_created, timing.median, timing.p90, timing.max,
-      ate >= 0 ? fmt::format("  ATE (Sim(3) aligned): RMSE {:.4f} m\n", ate) : std::string(), ro.out);
+      "{}{}  outputs in {}/\n",
+      ds.name, ds.kind, o.seed, result.frames.size(), result.landmarks_final, result.euclidean_final,
+      result.landmarks_created, result.frames.empty() ? 0 : min_matched,
+      min_matched_after_1s == std::numeric_limits<int>::max() ? 0 : min_matched_after_1s, timing.median, timing.p90,
+      timing.max, accuracy_line,
+      result.inertial
+          ? fmt::format("  IMU: {}; {} samples, {} gyro / {} accel saturated; {} images before the start\n",
+                        result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
+                        result.imu_accel_saturated, result.images_before_start)
+          : std::string(),
+      ro.out);
 }
 
 }  // namespace
@@ -212,27 +260,34 @@ void register_run(CLI::App& app) {
   auto opts = std::make_shared<RunOptions>();
   auto* sub = app.add_subcommand("run", "Run SLAM on a dataset, or on the built-in simulated demo (no --dataset)");
   sub->add_option("--dataset", opts->dataset,
-                  "KIND:PATH of a dataset: monocular image SLAM on its camera (without it: the simulated demo)");
+                  "KIND:PATH of a dataset (euroc, tum, kitti, images, video), or sim:PRESET|FILE for the simulator; "
+                  "without it: the simulator's config simulation/preset (default handheld)");
   sub->add_option("--config", opts->config, "YAML configuration (see docs/demo.md); an output folder's "
                                             "config.yaml reproduces its run");
   sub->add_flag("--dump-config", opts->dump_config, "Print the effective configuration and exit");
   sub->add_option("--out", opts->out, "Output folder")->capture_default_str();
   sub->add_option("--seed", opts->seed, "Seed of every random draw of the run (overrides the config; default 1)");
-  sub->add_option("--duration", opts->duration_s, "Demo: simulated duration in s (default 30)")
+  sub->add_option("--duration", opts->duration_s, "Simulated runs: duration in s (default: the preset's, 30)")
       ->check(CLI::PositiveNumber);
-  sub->add_option("--rate", opts->rate_hz, "Demo: camera rate in Hz (default 30); dataset runs: the rate of image folders")->check(CLI::PositiveNumber);
-  sub->add_option("--points", opts->points, "Demo: number of 3D points in the room (default 500)")
+  sub->add_option("--rate", opts->rate_hz,
+                  "Image folders: their rate in Hz; --points-demo: camera rate (default 30)")
+      ->check(CLI::PositiveNumber);
+  sub->add_flag("--points-demo", opts->points_demo,
+                "Run the walking skeleton instead: simulated point measurements with known association");
+  sub->add_option("--points", opts->points, "--points-demo: number of 3D points in the room (default 500)")
       ->check(CLI::Range(10, 100000));
   sub->add_option("--overlay-frame", opts->overlay_frame,
                   "Dataset runs: write OUT/overlay_NNNNN.png of this image (0-based) with search ellipses and matches")
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--quiet", opts->quiet, "No progress line");
   sub->callback([opts] {
-    if (!opts->dataset.empty()) {
-      run_dataset(*opts);
+    if (opts->points_demo) {
+      if (!opts->dataset.empty()) throw ConfigError("--points-demo and --dataset exclude each other");
+      run_demo(*opts);
       return;
     }
-    run_demo(*opts);
+    if (opts->points) throw ConfigError("--points applies to --points-demo only");
+    run_dataset(*opts);
   });
 }
 

@@ -62,11 +62,11 @@ TEST(Cli, EverySubcommandHasHelp) {
 TEST(Cli, DemoRunWritesOutputsAndItsConfigReproducesIt) {
   const fs::path a = temp_dir("demo_a");
   const fs::path b = temp_dir("demo_b");
-  const Result r = run("run --duration 4 --seed 3 --quiet --out " + a.string());
+  const Result r = run("run --duration 6 --seed 3 --quiet --out " + a.string());
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("ATE"), std::string::npos);
   for (const char* f : {"trajectory.txt", "trajectory.csv", "groundtruth.txt", "frames.csv", "summary.json",
-                        "config.yaml"}) {
+                        "config.yaml", "map.ply"}) {
     EXPECT_TRUE(fs::exists(a / f)) << f;
   }
   // TUM text: 8 numbers per line, no header surprises.
@@ -88,6 +88,17 @@ TEST(Cli, DemoRunWritesOutputsAndItsConfigReproducesIt) {
   EXPECT_EQ(read_file(a / "trajectory.txt"), read_file(b / "trajectory.txt"));
 }
 
+TEST(Cli, PointsDemoRunsTheKnownAssociationSkeleton) {
+  const fs::path a = temp_dir("points");
+  const Result r = run("run --points-demo --duration 4 --seed 3 --quiet --out " + a.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("known association"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(a / "trajectory.txt"));
+  const Result bad = run("run --points 30 --quiet --out " + a.string());
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--points-demo"), std::string::npos) << bad.out;
+}
+
 TEST(Cli, MissingConfigIsOneLineErrorNamingTheFile) {
   const Result r = run("run --config /nonexistent/dir/cfg.yaml");
   EXPECT_NE(r.code, 0);
@@ -102,7 +113,7 @@ TEST(Cli, BrokenYamlIsOneLineErrorNamingTheFile) {
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.out.find("bad.yaml"), std::string::npos) << r.out;
   EXPECT_EQ(count_lines(r.out), 1) << r.out;
-  std::ofstream(d / "unknown.yaml") << "demo:\n  sead: 3\n";
+  std::ofstream(d / "unknown.yaml") << "slam:\n  sead: 3\n";
   const Result u = run("run --config " + (d / "unknown.yaml").string());
   EXPECT_NE(u.code, 0);
   EXPECT_NE(u.out.find("sead"), std::string::npos) << u.out;

@@ -43,6 +43,9 @@ void read_map_policy(YamlMap m, strategies::MapPolicyOptions& mp) {
   m.get("min_inlier_ratio", mp.min_inlier_ratio);
   m.get("forget_after_frames", mp.forget_after_frames);
   m.get("forget_unseen_after_frames", mp.forget_unseen_after_frames);
+  m.get("evict_when_full", mp.evict_when_full);
+  m.get("evict_min_unseen_frames", mp.evict_min_unseen_frames);
+  m.get("evict_rows", mp.evict_rows);
   m.finish();
 }
 
@@ -56,6 +59,9 @@ YAML::Node map_policy_to_yaml(const strategies::MapPolicyOptions& mp) {
   n["min_inlier_ratio"] = mp.min_inlier_ratio;
   n["forget_after_frames"] = mp.forget_after_frames;
   n["forget_unseen_after_frames"] = mp.forget_unseen_after_frames;
+  n["evict_when_full"] = mp.evict_when_full;
+  n["evict_min_unseen_frames"] = mp.evict_min_unseen_frames;
+  n["evict_rows"] = mp.evict_rows;
   return n;
 }
 

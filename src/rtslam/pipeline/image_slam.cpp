@@ -1,6 +1,7 @@
 #include "rtslam/pipeline/image_slam.hpp"
 
 #include <algorithm>
+#include <deque>
 #include <cmath>
 #include <optional>
 #include <variant>
@@ -11,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/pipeline/config_common.hpp"
 #include "rtslam/sim/simulation.hpp"
@@ -28,8 +30,14 @@ void ImageSlamOptions::validate() const {
   require_bound(max_frames >= 0, where, "max_frames", max_frames, ">= 0");
   require_bound(camera >= 0, where, "camera", camera, ">= 0");
   require_bound(rate_hz >= 0.0, where, "rate_hz", rate_hz, ">= 0");
+  require_bound(sim_duration_s >= 0.0, "simulation", "duration", sim_duration_s, ">= 0");
+  if (sim_preset.empty()) throw ConfigError("simulation/preset must not be empty");
   require_bound(overlay_frame >= -1, where, "overlay_frame", overlay_frame, ">= -1");
   if (overlay_frame >= 0 && overlay_path.empty()) throw ConfigError("slam/overlay_frame needs slam/overlay_path");
+ if (robot != "constant_velocity" && robot != "inertial") {
+    throw ConfigError(fmt::format("slam/robot = '{}' must be constant_velocity or inertial", robot));
+  }
+  imu.validate();
   if (known_landmarks_convention != "scenelib" && known_landmarks_convention != "robot") {
     throw ConfigError(fmt::format("slam/known_landmarks_convention = '{}' must be robot or scenelib",
                                   known_landmarks_convention));
@@ -44,6 +52,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
   {
     YamlMap s = top.child("slam");
     s.get("seed", o.seed);
+    s.get("robot", o.robot);
     s.get("initial_velocity_std", o.initial_velocity_std);
     s.get("state_capacity", o.state_capacity);
     s.get("max_frames", o.max_frames);
@@ -57,11 +66,18 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     s.finish();
   }
   read_motion(top.child("motion"), o.motion);
+  read_inertial(top.child("imu"), o.imu);
   if (top.has("search")) {
     YamlMap a = top.child("search");
     o.search = strategies::ActiveSearchOptions::from_yaml(a);
   }
   read_map_policy(top.child("map_manager"), o.map);
+  {
+    YamlMap s = top.child("simulation");
+    s.get("preset", o.sim_preset);
+    s.get("duration", o.sim_duration_s);
+    s.finish();
+  }
   top.finish();
   try {
     o.validate();
@@ -79,6 +95,7 @@ ImageSlamOptions load_image_slam_config(const std::string& path) {
 YAML::Node to_yaml(const ImageSlamOptions& o) {
   YAML::Node root;
   root["slam"]["seed"] = o.seed;
+  root["slam"]["robot"] = o.robot;
   root["slam"]["initial_velocity_std"] = o.initial_velocity_std;
   root["slam"]["state_capacity"] = o.state_capacity;
   root["slam"]["max_frames"] = o.max_frames;
@@ -90,6 +107,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["slam"]["overlay_frame"] = o.overlay_frame;
   root["slam"]["overlay_path"] = o.overlay_path;
   root["motion"] = motion_to_yaml(o.motion);
+  root["imu"] = inertial_to_yaml(o.imu);
   const auto& a = o.search;
   YAML::Node s = root["search"];
   s["sigma_px"] = a.sigma_px;
@@ -126,6 +144,8 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   s["zncc"]["climb_radius"] = z.climb_radius;
   s["zncc"]["partial_step_rows"] = z.partial_step_rows;
   root["map_manager"] = map_policy_to_yaml(o.map);
+  root["simulation"]["preset"] = o.sim_preset;
+  root["simulation"]["duration"] = o.sim_duration_s;
   return root;
 }
 
@@ -134,6 +154,16 @@ models::CameraIntrinsics to_intrinsics(const io::CameraCalibration& cam) {
   models::CameraIntrinsics c = sim::to_intrinsics(cam);
   c.validate();
   return c;
+}
+
+io::Dataset make_sim_dataset(const ImageSlamOptions& o) {
+  o.validate();
+  sim::SimConfig sc = sim::SimConfig::load(o.sim_preset);
+  sc.seed = o.seed;
+  sc.trajectory_seed.reset();
+  if (o.sim_duration_s > 0.0) sc.duration_s = o.sim_duration_s;
+  sc.validate();
+  return sim::Simulation::create(sc)->make_dataset();
 }
 
 namespace {
@@ -184,6 +214,20 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
     }
   }
 
+  const bool inertial = o.robot == "inertial";
+  models::InertialParams imu_params;
+  TimeNs t_d = 0;  // t_imu = t_cam + t_d
+  double gyro_full_scale = 0.0, accel_full_scale = 0.0;  // 0: unknown
+  if (inertial) {
+    if (known) throw ConfigError("slam/known_landmarks is not supported with slam/robot = inertial yet");
+    imu_params = inertial_params(ds.rig.imu, o.imu, ds.name);
+    t_d = o.imu.time_offset_s ? from_seconds(*o.imu.time_offset_s) : ds.rig.t_d;
+    if (o.imu.gyro_saturation) gyro_full_scale = *o.imu.gyro_saturation;
+    else if (ds.rig.imu->gyro_saturation) gyro_full_scale = *ds.rig.imu->gyro_saturation;
+    if (o.imu.accel_saturation) accel_full_scale = *o.imu.accel_saturation;
+    else if (ds.rig.imu->accel_saturation) accel_full_scale = *ds.rig.imu->accel_saturation;
+  }
+
   slam::World world;
   filter::StateOptions so;
   so.tangent_capacity = o.state_capacity;
@@ -191,7 +235,15 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   auto map_manager = std::make_unique<strategies::PolicyMapManager>(o.map);
   const strategies::PolicyMapManager& mm = *map_manager;
   slam::System system(world, map, std::move(map_manager));
-  auto robot_ptr = std::make_unique<slam::ConstantVelocityRobot>(o.motion);
+  std::unique_ptr<slam::Robot> robot_ptr;
+  slam::InertialRobot* imu_robot = nullptr;
+  if (inertial) {
+    auto r = std::make_unique<slam::InertialRobot>(imu_params);
+    imu_robot = r.get();
+    robot_ptr = std::move(r);
+  } else {
+    robot_ptr = std::make_unique<slam::ConstantVelocityRobot>(o.motion);
+  }
   slam::Sensor& sensor = robot_ptr->add_sensor(std::make_unique<slam::PinholeSensor>(cal.name, intr, T_RS));
   slam::Robot* robot = nullptr;
   auto dm_ptr = std::make_unique<strategies::ActiveSearchDataManager>(o.search, mm, intr.width, intr.height,
@@ -200,25 +252,43 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   sensor.set_data_manager(std::move(dm_ptr));
 
   ImageSlamResult result;
+  result.inertial = inertial;
   const auto total = ds.source->image_count();
   const int n_total = total ? static_cast<int>(*total) : 0;
   strategies::RawImage raw;
-  int done = 0;
-  while (auto m = ds.source->next()) {
-    const auto* frame = std::get_if<io::ImageFrame>(&*m);
-    if (frame == nullptr || frame->camera != o.camera) continue;
-    if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
-    if (robot == nullptr) {
+  int done = 0;       // images handed to the filter
+  int consumed = 0;   // images taken from the stream (processed or not), for progress
+  bool stop = false;
+  std::vector<ImuWindowSample> imu_window;  // before the inertial start
+  std::deque<io::ImageFrame> waiting;       // images not yet covered by the IMU
+  std::optional<TimeNs> last_imu_t;
+
+  const auto ground_truth_at = [&](TimeNs t) -> const StampedPose* {
+    if (!o.init_from_groundtruth || !ds.ground_truth || ds.ground_truth->poses.empty()) return nullptr;
+    const auto& gt = ds.ground_truth->poses;
+    return &*std::min_element(gt.begin(), gt.end(), [&](const StampedPose& a, const StampedPose& b) {
+      return std::abs(a.t - t) < std::abs(b.t - t);
+    });
+  };
+
+  // Starts the filter at time t (the first image); false while the inertial window is incomplete.
+  const auto start = [&](TimeNs t) -> bool {
+    if (inertial) {
+      if (imu_window.empty() || imu_window.front().t > t - from_seconds(o.imu.init_window_s)) return false;
+      const InertialStart s0 = initialize_inertial(imu_window, t, o.imu, ground_truth_at(t));
+      result.inertial_start = s0.describe();
+      logger("slam")->info("inertial robot: {}", result.inertial_start);
+      robot = &map.add_robot(std::move(robot_ptr), s0.x, s0.P, t);
+      for (const auto& w : imu_window) imu_robot->add_imu(w.t, w.m);
+      imu_window.clear();
+      imu_window.shrink_to_fit();
+    } else {
       // The gauge: the first pose (ground truth at the first image, or identity) with zero covariance.
       Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
       x0.segment<4>(3) << 1.0, 0.0, 0.0, 0.0;
-      if (o.init_from_groundtruth && ds.ground_truth && !ds.ground_truth->poses.empty()) {
-        const auto& gt = ds.ground_truth->poses;
-        const auto it = std::min_element(gt.begin(), gt.end(), [&](const StampedPose& a, const StampedPose& b) {
-          return std::abs(a.t - frame->t) < std::abs(b.t - frame->t);
-        });
-        x0.head<3>() = it->p_WR;
-        x0.segment<4>(3) = math::quat_to_wxyz(it->q_WR);
+      if (const StampedPose* g = ground_truth_at(t)) {
+        x0.head<3>() = g->p_WR;
+        x0.segment<4>(3) = math::quat_to_wxyz(g->q_WR);
       }
       Eigen::MatrixXd P0 = Eigen::MatrixXd::Zero(12, 12);
       P0.bottomRightCorner<6, 6>() =
@@ -227,26 +297,107 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
         x0 = known->robot_mean;
         P0 = known->robot_cov;
       }
-      robot = &map.add_robot(std::move(robot_ptr), x0, P0, frame->t);
+      robot = &map.add_robot(std::move(robot_ptr), x0, P0, t);
       if (known) result.known_landmarks = add_known_landmarks(map, sensor, *known);
-      raw.sensor_id = sensor.id();
     }
-    raw.t = frame->t;
-    raw.image = vision::ImageView{frame->image.data, frame->image.cols, frame->image.rows,
-                                  static_cast<int>(frame->image.step[0])};
+    raw.sensor_id = sensor.id();
+    return true;
+  };
+
+  const auto process_image = [&](const io::ImageFrame& frame) {
+    ++consumed;
+    const TimeNs t = frame.t + t_d;
+    if (robot == nullptr && !start(t)) {
+      ++result.images_before_start;
+      if (result.images_before_start == 1) {
+        logger("slam")->info("waiting for {:.2f} s of IMU data before the first image to start the inertial robot",
+                             o.imu.init_window_s);
+      }
+      if (on_frame) on_frame(consumed, n_total);
+      return;
+    }
+    raw.t = t;
+    raw.image = vision::ImageView{frame.image.data, frame.image.cols, frame.image.rows,
+                                  static_cast<int>(frame.image.step[0])};
     result.frames.push_back(system.process(raw));
-    if (done == o.overlay_frame) write_overlay(o.overlay_path, frame->image, dm.last_frame(), o.search.n_sigma);
+    if (done == o.overlay_frame) write_overlay(o.overlay_path, frame.image, dm.last_frame(), o.search.n_sigma);
     StampedPose est;
-    est.t = frame->t;
+    est.t = t;
     const math::Pose T_WR = robot->pose();
     est.p_WR = T_WR.p;
     est.q_WR = T_WR.q;
-    est.v_WR = map.state().mean(robot->block()).segment<3>(7);
+    const auto x = map.state().mean(robot->block());
+    est.v_WR = x.segment<3>(7);
+    if (inertial) {
+      est.accel_bias = x.segment<3>(models::InertialIndex::kAb);
+      est.gyro_bias = x.segment<3>(models::InertialIndex::kWb);
+    }
     est.cov = map.state().cov(robot->block()).topLeftCorner<6, 6>();
     result.estimate.poses.push_back(est);
     ++done;
-    if (on_frame) on_frame(done, n_total);
-    if (o.max_frames > 0 && done >= o.max_frames) break;
+    if (on_frame) on_frame(consumed, n_total);
+    if (o.max_frames > 0 && done >= o.max_frames) stop = true;
+  };
+
+  while (!stop) {
+    auto m = ds.source->next();
+    if (!m) break;
+    if (const auto* imu = std::get_if<io::ImuSample>(&*m)) {
+      if (!inertial) continue;
+      ++result.imu_samples;
+      last_imu_t = imu->t;
+      if (gyro_full_scale > 0.0 && imu->gyro.cwiseAbs().maxCoeff() >= gyro_full_scale) ++result.imu_gyro_saturated;
+      if (accel_full_scale > 0.0 && imu->accel.cwiseAbs().maxCoeff() >= accel_full_scale) ++result.imu_accel_saturated;
+      const models::ImuMeasurement mm_imu{imu->accel, imu->gyro};
+      if (robot == nullptr) {
+        if (!imu_window.empty() && imu->t <= imu_window.back().t) {
+          throw DataError(fmt::format("IMU sample at t = {} ns is not after the previous one", imu->t));
+        }
+        imu_window.push_back({imu->t, mm_imu});
+        // Keep only what the initialization can use (the window before the next image).
+        const TimeNs keep_from = imu->t - from_seconds(2.0 * o.imu.init_window_s + 1.0);
+        if (imu_window.front().t < keep_from) {
+          const auto it = std::lower_bound(imu_window.begin(), imu_window.end(), keep_from,
+                                           [](const ImuWindowSample& s, TimeNs tt) { return s.t < tt; });
+          imu_window.erase(imu_window.begin(), it);
+        }
+      } else {
+        imu_robot->add_imu(imu->t, mm_imu);
+      }
+      while (!stop && !waiting.empty() && waiting.front().t + t_d <= imu->t) {
+        process_image(waiting.front());
+        waiting.pop_front();
+      }
+      continue;
+    }
+    const auto* frame = std::get_if<io::ImageFrame>(&*m);
+    if (frame == nullptr || frame->camera != o.camera) continue;
+    if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
+    if (!inertial) {
+      process_image(*frame);
+      continue;
+    }
+    waiting.push_back(*frame);
+    // At equal timestamps the IMU sample comes first: an image may be covered on arrival.
+    while (!stop && !waiting.empty() && last_imu_t && waiting.front().t + t_d <= *last_imu_t) {
+      process_image(waiting.front());
+      waiting.pop_front();
+    }
+    if (waiting.size() > 200) {
+      throw DataError(fmt::format("{}: 200 images wait for IMU data (the IMU stream stops or lags behind the camera)",
+                                  frame->path));
+    }
+  }
+  result.images_not_covered = static_cast<int>(stop ? 0 : waiting.size());
+  if (result.images_not_covered > 0) {
+    logger("slam")->warn("{} image(s) after the last IMU sample were not processed", result.images_not_covered);
+  }
+  if (imu_robot != nullptr && robot != nullptr) {
+    result.imu_samples_integrated = imu_robot->samples_integrated();
+    const auto x = map.state().mean(robot->block());
+    result.gravity_W = x.segment<3>(models::InertialIndex::kG);
+    result.accel_bias = x.segment<3>(models::InertialIndex::kAb);
+    result.gyro_bias = x.segment<3>(models::InertialIndex::kWb);
   }
   if (robot == nullptr) throw DataError(fmt::format("dataset '{}' has no image of camera {}", ds.name, o.camera));
   const Eigen::VectorXd& mean = map.state().mean_vector();

@@ -1,19 +1,24 @@
 #pragma once
-// Monocular EKF-SLAM on real images (paper, sections 3 and 4.1): a System built from an io::Dataset and YAML
-// options — one constant-velocity robot carrying the dataset's camera 0 (intrinsics, distortion and T_RS from the
-// Rig), the active-search / one-point RANSAC image data manager, the policy map manager. IMU samples are ignored.
+// Monocular and inertial-monocular EKF-SLAM on images (paper, sections 3, 4.1 and 4.3): a System built from an
+// io::Dataset and YAML options — one robot carrying the dataset's camera 0 (intrinsics, distortion and T_RS from
+// the Rig), the active-search / one-point RANSAC image data manager, the policy map manager. The robot is
+// constant-velocity (IMU samples ignored) or inertial (slam/robot: inertial): IMU samples drive the prediction, an
+// image at t_cam is processed once the IMU covers t_cam + t_d (trajectories are stamped in that IMU clock), and the
+// filter starts at the first image with `imu/init_window` seconds of IMU before it (inertial_init.hpp).
 // The first robot pose is, in this order: the known-landmark set's initial state (its points then fix scale and
 // frame, see known_landmarks.hpp), the ground truth's at the first image (so outputs compare directly), identity;
 // without known landmarks it has zero covariance (the gauge). Seeded: the same options and data give
 // the same output.
 //
 // YAML layout (every key optional, unknown keys are errors naming the key; docs/configuration.md):
-//   slam:        {seed, initial_velocity_std, state_capacity, max_frames, camera, init_from_groundtruth, rate_hz,
+//   slam:        {seed, robot: constant_velocity|inertial, initial_velocity_std, state_capacity, max_frames, camera, init_from_groundtruth, rate_hz,
 //                 known_landmarks, known_landmarks_convention, overlay_frame, overlay_path}
-//   motion:      {sigma_v, sigma_w}
+//   motion:      {sigma_v, sigma_w}                (constant-velocity robot)
+//   imu:         see inertial_init.hpp             (inertial robot)
 //   search:      see strategies::ActiveSearchOptions::from_yaml
 //   map_manager: {policy: global|visual_odometry, map_size, reparam_threshold, min_searches_to_judge,
 //                 min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
+//   simulation:  {preset, duration}   (only for runs on the simulator: `rtslam run` without --dataset)
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -24,6 +29,7 @@
 #include "rtslam/core/trajectory.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/models/robots/constant_velocity.hpp"
+#include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/strategies/active_search.hpp"
@@ -33,6 +39,7 @@ namespace rtslam::pipeline {
 
 struct ImageSlamOptions {
   std::uint64_t seed = 1;
+  std::string robot = "constant_velocity";  // constant_velocity | inertial
   double initial_velocity_std = 0.5;  // m/s and rad/s: prior std of v and ω (RT-SLAM)
   int state_capacity = 600;           // covariance rows of the filter storage (>= map_manager.map_size)
   int max_frames = 0;                 // stop after this many images (0: all)
@@ -44,7 +51,10 @@ struct ImageSlamOptions {
   int overlay_frame = -1;             // write a PNG overlay of this image (0-based; -1: none) ...
   std::string overlay_path;           // ... to this file: 3σ search ellipses (blue), matches (green: updated,
                                       // yellow: RANSAC inlier, red: matched but rejected), new landmarks not drawn
+  std::string sim_preset = "handheld";  // simulator preset or YAML file, for runs without a dataset
+  double sim_duration_s = 0.0;           // simulated seconds (0: the preset's)
   models::ConstantVelocityParams motion;
+  InertialOptions imu;
   strategies::ActiveSearchOptions search;
   strategies::MapPolicyOptions map;
   void validate() const;
@@ -69,7 +79,23 @@ struct ImageSlamResult {
   std::vector<Eigen::Vector3d> landmark_positions;
   std::vector<Eigen::Matrix3d> landmark_covariances;  // of the position (AHP: through J_p_L)
   std::vector<double> landmark_depths;          // distance from the final camera position
+  // Inertial runs.
+  bool inertial = false;
+  std::string inertial_start;                   // InertialStart::describe() of the initialization
+  long imu_samples = 0;                         // IMU samples read
+  long imu_samples_integrated = 0;              // midpoint steps of the prediction
+  long imu_gyro_saturated = 0;                  // samples with a gyro axis at the full scale
+  long imu_accel_saturated = 0;                 // samples with an accelerometer axis at the full scale
+  int images_before_start = 0;                  // images before the IMU window was complete (not processed)
+  int images_not_covered = 0;                   // images after the last IMU sample (not processed)
+  Eigen::Vector3d gravity_W = Eigen::Vector3d::Zero();  // final estimates
+  Eigen::Vector3d accel_bias = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
 };
+
+/// The simulated sequence of `options.sim_preset` (sim::SimConfig::load) with its noise and motion drawn from
+/// `options.seed` and `options.sim_duration_s` when > 0, as an in-memory dataset rendered on the fly.
+io::Dataset make_sim_dataset(const ImageSlamOptions& options);
 
 /// Runs the pipeline over the dataset's images. `on_frame(done, total)` after each image (total 0 if unknown).
 ImageSlamResult run_image_slam(io::Dataset& dataset, const ImageSlamOptions& options,

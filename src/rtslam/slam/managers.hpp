@@ -28,6 +28,7 @@ struct FrameStats {
   int ransac_inliers = 0;
   int reparametrized = 0;
   int removed = 0;
+  int evicted = 0;  // of `removed`: dropped to make room in a full map
   double time_predict_ms = 0.0;
   double time_update_ms = 0.0;
   double time_init_ms = 0.0;

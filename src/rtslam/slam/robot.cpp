@@ -1,5 +1,7 @@
 #include "rtslam/slam/robot.hpp"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
@@ -56,6 +58,88 @@ bool ConstantVelocityRobot::predict_to(TimeNs t) {
   state.mean(block_) = x_tmp_;
   state.predict(block_, F_, Q_);
   time_ = t;
+  return true;
+}
+
+InertialRobot::InertialRobot(models::InertialParams params, std::string name)
+    : Robot(std::move(name)), params_(params) {
+  params_.validate();
+}
+
+filter::BlockLayout InertialRobot::static_layout() {
+  return filter::BlockLayout::euclidean(3).then_quaternion().then_euclidean(3).then_euclidean(3).then_euclidean(3).then_euclidean(3);
+}
+
+void InertialRobot::add_imu(TimeNs t, const models::ImuMeasurement& m) {
+  const std::optional<TimeNs> last = imu_coverage();
+  if (last && t <= *last) {
+    throw DataError(fmt::format("robot '{}': IMU sample at t = {} ns is not after the previous one (t = {} ns)", name(),
+                                t, *last));
+  }
+  if (!m.accel.allFinite() || !m.gyro.allFinite()) {
+    throw DataError(fmt::format("robot '{}': IMU sample at t = {} ns is not finite", name(), t));
+  }
+  if (map_ != nullptr && t <= time_) {
+    prev_ = Sample{t, m};  // before the robot's time: only the reading at time_ may need it
+    return;
+  }
+  pending_.push_back(Sample{t, m});
+}
+
+std::optional<TimeNs> InertialRobot::imu_coverage() const {
+  if (!pending_.empty()) return pending_.back().t;
+  if (prev_) return prev_->t;
+  return std::nullopt;
+}
+
+models::ImuMeasurement InertialRobot::lerp(const Sample& a, const Sample& b, TimeNs t) {
+  if (t == a.t) return a.m;
+  if (t == b.t) return b.m;
+  const double s = static_cast<double>(t - a.t) / static_cast<double>(b.t - a.t);
+  models::ImuMeasurement m;
+  m.accel = a.m.accel + s * (b.m.accel - a.m.accel);
+  m.gyro = a.m.gyro + s * (b.m.gyro - a.m.gyro);
+  return m;
+}
+
+bool InertialRobot::predict_to(TimeNs t) {
+  if (t < time_) return false;
+  if (t == time_) return true;
+  const std::optional<TimeNs> covered = imu_coverage();
+  if (!covered || *covered < t) {
+    throw DataError(fmt::format("robot '{}': the IMU does not cover t = {} ns (last sample at {})", name(), t,
+                                covered ? fmt::format("{} ns", *covered) : std::string("none")));
+  }
+  filter::State& state = map_->state();
+  x_ = state.mean(block_);
+  Phi_.setIdentity();
+  Qacc_.setZero();
+  while (time_ < t) {
+    // Samples at or before time_ only serve the reading at time_.
+    while (!pending_.empty() && pending_.front().t <= time_) {
+      prev_ = pending_.front();
+      pending_.pop_front();
+    }
+    const Sample& next = pending_.front();
+    const Sample& before = prev_ ? *prev_ : next;  // no earlier sample (start of the stream): hold the first
+    const models::ImuMeasurement m0 = lerp(before, next, time_);
+    const TimeNs t1 = std::min(next.t, t);
+    const models::ImuMeasurement m1 = lerp(before, next, t1);
+    models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_, &F_, &Q_);
+    tmp_.noalias() = F_ * Phi_;
+    Phi_ = tmp_;
+    tmp_.noalias() = F_ * Qacc_;
+    Qacc_.noalias() = tmp_ * F_.transpose();
+    Qacc_ += Q_;
+    ++steps_;
+    time_ = t1;
+    if (t1 == next.t) {
+      prev_ = next;
+      pending_.pop_front();
+    }
+  }
+  state.mean(block_) = x_;
+  state.predict(block_, Phi_, Qacc_);
   return true;
 }
 

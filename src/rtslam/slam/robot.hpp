@@ -1,7 +1,9 @@
 #pragma once
 // Robots: a state block in the map whose first segments are the pose [p_WR(3) q_WR(4)] (tangent [δp δθ], the
 // first 6 covariance rows of the block), then model-specific states. Robots own their sensors.
+#include <deque>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -9,6 +11,7 @@
 #include "rtslam/filter/state.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/models/robots/constant_velocity.hpp"
+#include "rtslam/models/robots/inertial.hpp"
 #include "rtslam/slam/fwd.hpp"
 
 namespace rtslam::slam {
@@ -66,6 +69,39 @@ class ConstantVelocityRobot final : public Robot {
   models::Vector13d x_tmp_;
   models::Matrix12d F_;
   models::Matrix12d Q_;
+};
+
+/// The inertial robot [p q v a_b ω_b g] (../shared/MATH.md "Robots", models/robots/inertial.hpp): IMU samples drive
+/// the prediction. Samples are buffered by add_imu (IMU clock, strictly increasing); predict_to(t) integrates them
+/// with the midpoint rule up to t, interpolating the reading at t inside the last interval, and applies the
+/// composed transition Φ = Π F_k and noise Q = Σ Φ_k Q_k Φ_kᵀ of the whole interval in one covariance update (the
+/// cross-covariances with the map are touched once per image, not per sample).
+class InertialRobot final : public Robot {
+ public:
+  explicit InertialRobot(models::InertialParams params, std::string name = "robot");
+  /// Buffers one IMU sample; DataError if it is not after the previous one.
+  void add_imu(TimeNs t, const models::ImuMeasurement& m);
+  /// Time of the latest buffered sample (the robot can be predicted up to it); nullopt before the first.
+  std::optional<TimeNs> imu_coverage() const;
+  /// Integrates to t; DataError if the IMU does not cover t. False if t is before the robot's time.
+  bool predict_to(TimeNs t) override;
+  filter::BlockLayout layout() const override { return static_layout(); }
+  static filter::BlockLayout static_layout();
+  const models::InertialParams& params() const { return params_; }
+  long samples_integrated() const { return steps_; }
+
+ private:
+  struct Sample {
+    TimeNs t;
+    models::ImuMeasurement m;
+  };
+  static models::ImuMeasurement lerp(const Sample& a, const Sample& b, TimeNs t);
+  models::InertialParams params_;
+  std::optional<Sample> prev_;  // the latest sample at or before time_
+  std::deque<Sample> pending_;  // samples after time_
+  long steps_ = 0;
+  models::Vector19d x_;
+  models::Matrix18d F_, Q_, Phi_, Qacc_, tmp_;
 };
 
 }  // namespace rtslam::slam

@@ -1,5 +1,6 @@
 #include "rtslam/strategies/map_policies.hpp"
 
+#include <algorithm>
 #include <limits>
 
 #include <fmt/format.h>
@@ -21,11 +22,18 @@ void MapPolicyOptions::validate() const {
   if (forget_after_frames < 1 || forget_unseen_after_frames < 0 || min_searches_to_judge < 1) {
     throw ConfigError("map_manager: forget_after_frames and min_searches_to_judge must be >= 1");
   }
+  if (evict_min_unseen_frames < 1) {
+    throw ConfigError(fmt::format("map_manager: evict_min_unseen_frames = {} must be >= 1", evict_min_unseen_frames));
+  }
+  if (evict_rows < 0 || evict_rows > map_size) {
+    throw ConfigError(fmt::format("map_manager: evict_rows = {} must be in [0, map_size = {}]", evict_rows, map_size));
+  }
 }
 
 PolicyMapManager::PolicyMapManager(MapPolicyOptions options) : opt_(options) {
   opt_.validate();
   scratch_.reserve(256);
+  candidates_.reserve(256);
   logger_ = logger("map");
 }
 
@@ -68,11 +76,34 @@ void PolicyMapManager::manage(slam::Map& map, const slam::Sensor& sensor, long f
       if (slam::reparametrize_to_euclidean(map, *l)) ++stats.reparametrized;
     }
   }
+  if (opt_.evict_when_full && map.state().tangent_used() + opt_.evict_rows > opt_.map_size) {
+    evict(map, sensor, frame, stats);
+  }
   if (logger_->should_log(spdlog::level::debug)) {
     logger_->debug("frame {}: {} landmarks ({} AHP, smallest linearity index {:.3g}), {} rows used, {} reparametrized, "
                    "{} removed",
                    frame, map.landmarks().size(), ahp, min_index, map.state().tangent_used(), stats.reparametrized,
                    stats.removed);
+  }
+}
+
+void PolicyMapManager::evict(slam::Map& map, const slam::Sensor& sensor, long frame, slam::FrameStats& stats) {
+  candidates_.clear();
+  for (const auto& l : map.landmarks()) {
+    const slam::Observation* o = l->observation_of(sensor);
+    const long last_visible = o && o->counters.last_visible_frame >= 0 ? o->counters.last_visible_frame
+                                                                       : l->frame_created;
+    if (frame - last_visible >= opt_.evict_min_unseen_frames) candidates_.emplace_back(last_visible, l.get());
+  }
+  // Longest unseen first; ties by id so that the order (and the run) is deterministic.
+  std::sort(candidates_.begin(), candidates_.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first < b.first : a.second->id() < b.second->id();
+  });
+  for (const auto& [last_visible, l] : candidates_) {
+    if (map.state().tangent_used() + opt_.evict_rows <= opt_.map_size) break;
+    map.remove_landmark(*l);
+    ++stats.removed;
+    ++stats.evicted;
   }
 }
 

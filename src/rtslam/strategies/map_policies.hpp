@@ -4,6 +4,9 @@
 //  - Global: keep landmarks; remove those whose search/match record is poor (match ratio below a bound after
 //    enough searches) — a landmark that left the view stays for when it comes back (loops close);
 //  - VisualOdometry: also forget landmarks not observed for `forget_after_frames` frames.
+// Both make room when the map is full (`evict_when_full`): a full map would stop feature initialization and leave
+// the camera blind once it turns away from the mapped part of the scene, so the landmarks out of view the longest
+// (not visible for at least `evict_min_unseen_frames`) are dropped until `evict_rows` rows are free again.
 // The map size counts covariance rows ("state entries", as RT-SLAM's MAP_SIZE): an AHP point takes 7, a
 // Euclidean point 3, the robot its own.
 #include <memory>
@@ -25,6 +28,9 @@ struct MapPolicyOptions {
   double min_inlier_ratio = 0.5;      // updated / matched below this: remove (inconsistent)
   long forget_after_frames = 60;      // VO: frames without an update before a landmark is dropped
   long forget_unseen_after_frames = 0;  // Global: drop landmarks not visible for this long (0: never)
+  bool evict_when_full = true;        // make room in a full map by dropping the longest-unseen landmarks ...
+  long evict_min_unseen_frames = 20;  // ... that have not been visible for at least this many frames ...
+  int evict_rows = 70;                // ... until this many rows are free (70: 10 AHP points, RT-SLAM N_INIT)
   void validate() const;
 };
 
@@ -37,7 +43,9 @@ class PolicyMapManager final : public slam::MapManager {
 
  private:
   MapPolicyOptions opt_;
+  void evict(slam::Map& map, const slam::Sensor& sensor, long frame, slam::FrameStats& stats);
   std::vector<slam::Landmark*> scratch_;
+  std::vector<std::pair<long, slam::Landmark*>> candidates_;
   std::shared_ptr<spdlog::logger> logger_;
 };
 

@@ -9,7 +9,11 @@
 // Motion blur (optional): the n² sub-samples of a pixel are taken at n² distinct instants spread over the
 // exposure (the caller passes one camera pose per instant), so blur costs nothing extra.
 // Rendering is split over `threads` threads by rows; the result does not depend on the thread count (noise is
-// drawn per row from a generator seeded by (frame seed, row)).
+// drawn per row from a splitmix64 stream seeded by (frame seed, row), Gaussian by the Marsaglia polar method).
+// Culling: the image is cut into tiles of kTile x kTile pixels whose rays span a known rectangle of the z = 1
+// plane (precomputed). Per frame, each obstacle's corners are projected (every pose); a tile's rays are only
+// tested against the obstacles whose projected bounding rectangle meets the tile's (conservative, with margin:
+// the picture is the same as testing every obstacle).
 #include <cstdint>
 #include <vector>
 
@@ -52,14 +56,21 @@ class Renderer {
   std::size_t valid_rays() const { return valid_rays_; }
 
  private:
-  void render_rows(const std::vector<math::Pose>& T_WC, std::uint64_t noise_seed, int row_begin, int row_step,
-                   cv::Mat& out) const;
+  static constexpr int kTile = 8;  // pixels; also the row block of the thread split
+  struct Rect {  // on the z = 1 plane of the camera (normalised coordinates)
+    float x_min, x_max, y_min, y_max;
+  };
+  struct Frame;  // per-frame poses and obstacle rectangles
+  void render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, std::vector<float>& sums,
+                    std::vector<int>& boxes, cv::Mat& out) const;
 
   const World& world_;
   RenderOptions options_;
   int width_ = 0, height_ = 0, n2_ = 1;
   std::vector<Eigen::Vector3f> rays_;  // [(v * width + u) * n2 + k], camera frame, z = 1 (zero if invalid)
   std::size_t valid_rays_ = 0;
+  int tiles_x_ = 0, tiles_y_ = 0;
+  std::vector<Rect> tile_rays_;  // [ty * tiles_x + tx]: bounds of the tile's valid rays (empty: x_min > x_max)
 };
 
 }  // namespace rtslam::sim

@@ -225,6 +225,7 @@ World::World(const WorldConfig& config) : config_(config) {
                       room_min_.z());
     const Vector3f hi(static_cast<float>(c.x() + 0.5 * b.size.x()), static_cast<float>(c.y() + 0.5 * b.size.y()),
                       std::min(room_max_.z(), room_min_.z() + static_cast<float>(b.size.z())));
+    all_boxes_.push_back(static_cast<int>(boxes_.size()));
     boxes_.push_back(Aabb{lo, hi, static_cast<int>(faces_.size())});
     add_faces(lo, hi);
   }
@@ -259,9 +260,11 @@ bool World::is_free(const Vector3d& p, double clearance) const {
   return true;
 }
 
-bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const {
+bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const { return cast(o, d, all_boxes_, hit); }
+
+bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxes, Hit& hit) const {
   constexpr float kInf = std::numeric_limits<float>::infinity();
-  Vector3f inv;
+  float inv[3];
   for (int i = 0; i < 3; ++i) inv[i] = d[i] != 0.0f ? 1.0f / d[i] : kInf;
   // Room: exit distance through the slab of each axis.
   float best = kInf;
@@ -276,8 +279,44 @@ bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const {
     }
   }
   if (face < 0 || !(best > 0.0f)) return false;
-  // Boxes: entry distance (slab test); the entry face is on the axis of the largest near distance.
-  for (const Aabb& b : boxes_) {
+  if (d.x() == 0.0f || d.y() == 0.0f || d.z() == 0.0f) {
+    cast_boxes_parallel(o, d, boxes, best, face);
+  } else {
+    // Boxes: entry distance (slab test); the entry face is on the axis of the largest near distance. The near
+    // plane of each slab is the lo plane for a positive direction component, else the hi plane (the same values
+    // as computing both distances and swapping them).
+    const bool neg[3] = {d.x() < 0.0f, d.y() < 0.0f, d.z() < 0.0f};
+    for (const int k : boxes) {
+      const Aabb& b = boxes_[static_cast<std::size_t>(k)];
+      float t_near = ((neg[0] ? b.hi.x() : b.lo.x()) - o.x()) * inv[0];
+      float t_far = ((neg[0] ? b.lo.x() : b.hi.x()) - o.x()) * inv[0];
+      int axis = 0;
+      for (int i = 1; i < 3; ++i) {
+        const float t0 = ((neg[i] ? b.hi[i] : b.lo[i]) - o[i]) * inv[i];
+        const float t1 = ((neg[i] ? b.lo[i] : b.hi[i]) - o[i]) * inv[i];
+        axis = t0 > t_near ? i : axis;
+        t_near = t0 > t_near ? t0 : t_near;
+        t_far = std::min(t_far, t1);
+      }
+      if (t_near <= t_far && t_near > 0.0f && t_near < best) {
+        best = t_near;
+        face = b.first_face + 2 * axis + (neg[axis] ? 1 : 0);
+      }
+    }
+  }
+  hit.t = best;
+  hit.face = face;
+  return true;
+}
+
+void World::cast_boxes_parallel(const Vector3f& o, const Vector3f& d, std::span<const int> boxes, float& best,
+                                int& face) const {
+  // A direction with a zero component (rare: test rays, axis-aligned cameras): the general slab test.
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  Vector3f inv;
+  for (int i = 0; i < 3; ++i) inv[i] = d[i] != 0.0f ? 1.0f / d[i] : kInf;
+  for (const int k : boxes) {
+    const Aabb& b = boxes_[static_cast<std::size_t>(k)];
     float t_near = -kInf, t_far = kInf;
     int axis = -1;
     for (int i = 0; i < 3; ++i) {
@@ -298,21 +337,31 @@ bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const {
       face = b.first_face + 2 * axis + (d[axis] > 0.0f ? 0 : 1);
     }
   }
-  hit.t = best;
-  hit.face = face;
-  return true;
 }
 
 float World::shade(int face_index, const Vector3f& p) const {
-  const Face& f = faces_[static_cast<std::size_t>(face_index)];
   if (!markers_.empty()) {
     const Vector3d pd = p.cast<double>();
     for (const Marker& m : markers_)
       if ((pd - m.center).squaredNorm() <= m.radius * m.radius) return m.grey;
   }
-  const int b = (f.axis + 1) % 3, c = (f.axis + 2) % 3;
-  const float s = (p[b] - f.lo.x()) * inv_texel_, t = (p[c] - f.lo.y()) * inv_texel_;
-  return textures_[static_cast<std::size_t>(f.texture)].sample(s, t);
+  // FaceTexture::sample with the face's constants precomputed (same arithmetic, same result).
+  const FaceSampler& f = samplers_[static_cast<std::size_t>(face_index)];
+  const float s = std::clamp((p[f.b] - f.lo_b) * inv_texel_, 0.0f, f.s_max);
+  const float t = std::clamp((p[f.c] - f.lo_c) * inv_texel_, 0.0f, f.t_max);
+  const int x0 = std::min(static_cast<int>(s), f.x0_max), y0 = std::min(static_cast<int>(t), f.y0_max);
+  const float fx = s - static_cast<float>(x0), fy = t - static_cast<float>(y0);
+  const std::uint8_t* r0 = f.texels + static_cast<std::size_t>(y0) * f.width + static_cast<std::size_t>(x0);
+  const std::uint8_t* r1 = r0 + f.width;
+  const float top = static_cast<float>(r0[0]) + fx * (static_cast<float>(r0[1]) - static_cast<float>(r0[0]));
+  const float bot = static_cast<float>(r1[0]) + fx * (static_cast<float>(r1[1]) - static_cast<float>(r1[0]));
+  return top + fy * (bot - top);
+}
+
+float World::trace(const Vector3f& o, const Vector3f& d, std::span<const int> boxes) const {
+  Hit hit;
+  if (!cast(o, d, boxes, hit)) return 0.0f;
+  return shade(hit.face, o + hit.t * d);
 }
 
 namespace {
@@ -435,6 +484,23 @@ void World::generate_textures() {
       m.convertTo(m, CV_8U, kGain[f.axis][k < 6 ? k % 2 : 1 - k % 2]);  // [axis][normal along +axis ? 0 : 1]
     }
     tex.texels.assign(m.datastart, m.dataend);
+  }
+  samplers_.resize(faces_.size());
+  for (std::size_t k = 0; k < faces_.size(); ++k) {
+    const Face& f = faces_[k];
+    const FaceTexture& tex = textures_[static_cast<std::size_t>(f.texture)];
+    RTSLAM_CHECK(tex.width >= 2 && tex.height >= 2, "world: face textures must be at least 2 x 2 texels");
+    FaceSampler& s = samplers_[k];
+    s.b = (f.axis + 1) % 3;
+    s.c = (f.axis + 2) % 3;
+    s.lo_b = f.lo.x();
+    s.lo_c = f.lo.y();
+    s.texels = tex.texels.data();
+    s.width = static_cast<std::size_t>(tex.width);
+    s.x0_max = tex.width - 2;
+    s.y0_max = tex.height - 2;
+    s.s_max = static_cast<float>(tex.width - 1);
+    s.t_max = static_cast<float>(tex.height - 1);
   }
   std::size_t total = 0;
   for (const FaceTexture& t : textures_) total += t.texels.size();

@@ -21,6 +21,7 @@
 //   pillars: [{center: [x, y], size: [sx, sy]}]     # floor to ceiling
 //   random_boxes: 0           # extra boxes placed at random (seeded), away from the room centre
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -96,6 +97,13 @@ struct Face {
   int texture = 0;
 };
 
+/// An obstacle (box or pillar) as an axis-aligned box [lo, hi] in W; its six faces are
+/// World::faces()[first_face + 2·axis + side] (side 0: the lo plane, 1: the hi plane).
+struct Aabb {
+  Eigen::Vector3f lo = Eigen::Vector3f::Zero(), hi = Eigen::Vector3f::Zero();
+  int first_face = 0;
+};
+
 class World {
  public:
   /// Builds the geometry and generates the textures (procedural textures take ~1 s per 100 m² at 5 mm texels).
@@ -105,6 +113,8 @@ class World {
   Eigen::Vector3d room_min() const { return room_min_.cast<double>(); }
   Eigen::Vector3d room_max() const { return room_max_.cast<double>(); }
   const std::vector<Face>& faces() const { return faces_; }
+  /// The obstacles (boxes, then pillars, then random boxes).
+  const std::vector<Aabb>& boxes() const { return boxes_; }
   const std::vector<FaceTexture>& textures() const { return textures_; }
   std::vector<Marker>& markers() { return markers_; }
   const std::vector<Marker>& markers() const { return markers_; }
@@ -115,22 +125,37 @@ class World {
   /// Closest hit of the ray o + t·d (t > 0) from a point inside the room. Always hits (the room is closed)
   /// unless o is outside the room.
   bool cast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, Hit& hit) const;
+  /// The same, considering only the obstacles listed (indices into boxes()): the renderer passes those that
+  /// can be in view of a block of pixels. Identical to cast() when every obstacle the ray hits is listed.
+  bool cast(const Eigen::Vector3f& o, const Eigen::Vector3f& d, std::span<const int> boxes, Hit& hit) const;
   /// Grey level at a hit point p on a face (bilinear texture sample, markers on top).
   float shade(int face, const Eigen::Vector3f& p) const;
+  /// Grey level seen along the ray o + t·d: shade() at the closest hit of cast(o, d, boxes, ·), 0 if none. The
+  /// renderer's per-sub-sample call.
+  float trace(const Eigen::Vector3f& o, const Eigen::Vector3f& d, std::span<const int> boxes) const;
 
  private:
-  struct Aabb {
-    Eigen::Vector3f lo, hi;
-    int first_face;  // faces first_face + 2*axis + (0: lo side, 1: hi side)
+  // Per face, what shade() needs (texture axes, origin, sizes), precomputed; textures are at least 2 x 2 texels.
+  struct FaceSampler {
+    int b = 1, c = 2;             // texture axes: (axis + 1) % 3, (axis + 2) % 3
+    float lo_b = 0.0f, lo_c = 0.0f;
+    const std::uint8_t* texels = nullptr;
+    std::size_t width = 0;
+    int x0_max = 0, y0_max = 0;   // width - 2, height - 2
+    float s_max = 0.0f, t_max = 0.0f;  // width - 1, height - 1
   };
+  void cast_boxes_parallel(const Eigen::Vector3f& o, const Eigen::Vector3f& d, std::span<const int> boxes,
+                           float& best, int& face) const;
   void add_faces(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi);
   void generate_textures();
 
   WorldConfig config_;
   Eigen::Vector3f room_min_, room_max_;
   std::vector<Aabb> boxes_;
+  std::vector<int> all_boxes_;  // 0, 1, ..., boxes_.size() - 1
   std::vector<Face> faces_;
   std::vector<FaceTexture> textures_;
+  std::vector<FaceSampler> samplers_;  // [face]
   std::vector<Marker> markers_;
   float inv_texel_ = 200.0f;
 };

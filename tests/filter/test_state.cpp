@@ -384,3 +384,83 @@ TEST(State, MatchesClosedFormAcrossSeveralActiveRuns) {
 
 }  // namespace
 }  // namespace rtslam::filter
+
+namespace rtslam::filter {
+namespace {
+
+StateOptions with_basis(int k) {
+  StateOptions o;
+  o.tangent_capacity = 60;
+  o.nullspace_dim = k;
+  return o;
+}
+
+TEST(StateObservabilityConstraints, NewBlocksInheritTheBasisThroughTheirJacobian) {
+  Rng rng(11);
+  State s(with_basis(2));
+  const MatrixXd N0 = random_matrix(4, 2, rng);
+  const auto a = s.add_block(BlockLayout::euclidean(4), VectorXd::Zero(4), random_spd(4, rng), N0);
+  ASSERT_TRUE(a.has_value());
+  EXPECT_EQ(MatrixXd(s.nullspace(*a)), N0);
+  const MatrixXd J = random_matrix(3, 4, rng);
+  const BlockId parents[1] = {*a};
+  const auto b = s.add_block(BlockLayout::euclidean(3), VectorXd::Zero(3), parents, J, MatrixXd::Identity(3, 3));
+  ASSERT_TRUE(b.has_value());
+  EXPECT_LT((MatrixXd(s.nullspace(*b)) - J * N0).norm(), 1e-14);
+  // An independent prior without a basis has zero rows.
+  const auto c = s.add_block(BlockLayout::euclidean(2), VectorXd::Zero(2), MatrixXd::Identity(2, 2));
+  EXPECT_EQ(MatrixXd(s.nullspace(*c)), MatrixXd::Zero(2, 2));
+}
+
+TEST(StateObservabilityConstraints, ProjectedJacobianAnnihilatesTheBasisAndKeepsTheOrthogonalPart) {
+  Rng rng(12);
+  State s(with_basis(3));
+  const MatrixXd Na = random_matrix(5, 3, rng), Nb = random_matrix(4, 3, rng);
+  const auto a = s.add_block(BlockLayout::euclidean(5), VectorXd::Zero(5), random_spd(5, rng), Na);
+  const auto b = s.add_block(BlockLayout::euclidean(4), VectorXd::Zero(4), random_spd(4, rng), Nb);
+  const BlockId blocks[2] = {*a, *b};
+  MatrixXd N(9, 3);
+  N << Na, Nb;
+  const MatrixXd H0 = random_matrix(2, 9, rng);
+  MatrixXd H = H0;
+  s.constrain_jacobian(blocks, H);
+  EXPECT_LT((H * N).norm(), 1e-12 * H0.norm());
+  // Only the part of H along the basis changed: for any v orthogonal to the columns of N, H v = H0 v.
+  const MatrixXd P_orth = MatrixXd::Identity(9, 9) - N * (N.transpose() * N).inverse() * N.transpose();
+  EXPECT_LT(((H - H0) * P_orth).norm(), 1e-12);
+  // A second projection changes nothing.
+  MatrixXd H2 = H;
+  s.constrain_jacobian(blocks, H2);
+  EXPECT_LT((H2 - H).norm(), 1e-13);
+  // Without a tracked basis the Jacobian is untouched.
+  State plain;
+  const auto p = plain.add_block(BlockLayout::euclidean(9), VectorXd::Zero(9), MatrixXd::Identity(9, 9));
+  const BlockId one[1] = {*p};
+  MatrixXd H3 = H0;
+  plain.constrain_jacobian(one, H3);
+  EXPECT_EQ(H3, H0);
+}
+
+TEST(StateObservabilityConstraints, ConstrainedPredictionMapsTheOldBasisOntoTheNewOne) {
+  Rng rng(13);
+  State s(with_basis(2));
+  const MatrixXd U = random_matrix(6, 2, rng);
+  const auto r = s.add_block(BlockLayout::euclidean(6), VectorXd::Zero(6), random_spd(6, rng), U);
+  const auto l = s.add_block(BlockLayout::euclidean(3), VectorXd::Zero(3), random_spd(3, rng));
+  s.cov(*r, *l) = 0.01 * random_matrix(6, 3, rng);
+  s.cov(*l, *r) = MatrixXd(s.cov(*r, *l)).transpose();
+  const MatrixXd P_rr = s.cov(*r), P_rl = s.cov(*r, *l);
+  const MatrixXd F = MatrixXd::Identity(6, 6) + 0.1 * random_matrix(6, 6, rng);
+  const MatrixXd Q = 0.01 * random_spd(6, rng);
+  const MatrixXd W = U + 0.05 * random_matrix(6, 2, rng);
+  s.predict_constrained(*r, F, Q, W);
+  // The applied transition F* = F − (F U − W)(UᵀU)⁻¹Uᵀ: F* U = W, and F* = F on the complement of U.
+  const MatrixXd Fs = F - (F * U - W) * (U.transpose() * U).inverse() * U.transpose();
+  EXPECT_LT((Fs * U - W).norm(), 1e-12);
+  EXPECT_LT((MatrixXd(s.cov(*r)) - (Fs * P_rr * Fs.transpose() + Q)).norm(), 1e-12);
+  EXPECT_LT((MatrixXd(s.cov(*r, *l)) - Fs * P_rl).norm(), 1e-12);
+  EXPECT_EQ(MatrixXd(s.nullspace(*r)), W);
+}
+
+}  // namespace
+}  // namespace rtslam::filter

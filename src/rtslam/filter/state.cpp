@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include <Eigen/QR>
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
@@ -20,6 +21,10 @@ const char* to_string(CorrectionResult::Status s) {
 }
 
 void StateOptions::validate() const {
+  if (nullspace_dim < 0 || nullspace_dim > 16 || (nullspace_dim > 0 && max_block_tangent > 64)) {
+    throw ConfigError(fmt::format("filter: nullspace_dim = {} must be in [0, 16] (and max_block_tangent = {} <= 64 "
+                                  "with it)", nullspace_dim, max_block_tangent));
+  }
   if (tangent_capacity <= 0 || max_measurement_rows <= 0 || max_block_tangent <= 0 || ambient_capacity < 0) {
     throw ConfigError(fmt::format("filter: capacities must be positive (tangent {}, rows {}, block {})",
                                   tangent_capacity, max_measurement_rows, max_block_tangent));
@@ -27,6 +32,8 @@ void StateOptions::validate() const {
 }
 
 namespace {
+// k × k matrices of the observability constraints (k = nullspace_dim <= 16): no heap allocation.
+using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 16, 16>;
 int ambient_capacity_of(const StateOptions& o) {
   return o.ambient_capacity > 0 ? o.ambient_capacity : o.tangent_capacity * 4 / 3 + 16;
 }
@@ -44,7 +51,11 @@ State::State(StateOptions options)
       dx_(VectorXd::Zero(options.tangent_capacity)),
       HP_(MatrixXd::Zero(options.max_measurement_rows, options.tangent_capacity)),
       tmp_(MatrixXd::Zero(options.max_block_tangent, options.tangent_capacity)),
-      tmp_small_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)) {
+      tmp_small_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)),
+      F_oc_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)),
+      N_oc_(MatrixXd::Zero(options.tangent_capacity, options.nullspace_dim)),
+      HN_oc_(MatrixXd::Zero(options.max_measurement_rows, options.nullspace_dim)) {
+  N_ = MatrixXd::Zero(options.tangent_capacity, options.nullspace_dim);
   blocks_.reserve(256);
   runs_.reserve(64);
 }
@@ -62,6 +73,17 @@ std::optional<BlockId> State::add_block(const BlockLayout& layout, const Eigen::
                            cov.cols(), layout.describe()));
   const MatrixXd none(t, 0);
   return add_block(layout, mean, {}, none, cov);
+}
+
+std::optional<BlockId> State::add_block(const BlockLayout& layout, const Eigen::Ref<const VectorXd>& mean,
+                                        const Eigen::Ref<const MatrixXd>& cov,
+                                        const Eigen::Ref<const MatrixXd>& nullspace) {
+  RTSLAM_CHECK(nullspace.rows() == layout.tangent_size() && nullspace.cols() == options_.nullspace_dim,
+               fmt::format("block basis rows: {}x{}, want {}x{}", nullspace.rows(), nullspace.cols(),
+                           layout.tangent_size(), options_.nullspace_dim));
+  const std::optional<BlockId> id = add_block(layout, mean, cov);
+  if (id) N_.middleRows(block(*id).tangent_offset, layout.tangent_size()) = nullspace;
+  return id;
 }
 
 std::optional<BlockId> State::add_block(const BlockLayout& layout, const Eigen::Ref<const VectorXd>& mean,
@@ -110,6 +132,18 @@ std::optional<BlockId> State::add_block(const BlockLayout& layout, const Eigen::
       P_.block(toff, r.begin, t, r.length) = tmp_.block(0, r.begin, t, r.length);
     }
     P_.block(r.begin, toff, r.length, t) = P_.block(toff, r.begin, t, r.length).transpose();
+  }
+
+  // The new block's rows of the unobservable basis follow the linearized function: N_new = J N_parents.
+  if (options_.nullspace_dim > 0) {
+    auto Nn = N_.middleRows(toff, t);
+    Nn.setZero();
+    int c = 0;
+    for (BlockId p : parents) {
+      const BlockInfo& bp = block(p);
+      Nn.noalias() += J_new_parents.middleCols(c, bp.tangent_size()) * N_.middleRows(bp.tangent_offset, bp.tangent_size());
+      c += bp.tangent_size();
+    }
   }
 
   BlockId id;
@@ -215,6 +249,57 @@ void State::predict(BlockId id, const Eigen::Ref<const MatrixXd>& F, const Eigen
   Pbb.noalias() += FP * F.transpose();
   for (int j = 0; j < t; ++j)
     for (int i = j + 1; i < t; ++i) Pbb(j, i) = Pbb(i, j) = 0.5 * (Pbb(i, j) + Pbb(j, i));
+}
+
+Eigen::Block<const MatrixXd> State::nullspace(BlockId b) const {
+  const BlockInfo& bi = block(b);
+  return N_.block(bi.tangent_offset, 0, bi.tangent_size(), options_.nullspace_dim);
+}
+
+void State::predict_constrained(BlockId id, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q,
+                                const Eigen::Ref<const MatrixXd>& N_after) {
+  const int k = options_.nullspace_dim;
+  if (k == 0) {
+    predict(id, F, Q);
+    return;
+  }
+  const BlockInfo& b = block(id);
+  const int t = b.tangent_size();
+  RTSLAM_CHECK(N_after.rows() == t && N_after.cols() == k, "predict_constrained: basis size mismatch");
+  const auto U = N_.block(b.tangent_offset, 0, t, k);
+  auto Fc = F_oc_.topLeftCorner(t, t);
+  Fc = F;
+  // F* = F − (F U − W)(UᵀU)⁻¹Uᵀ: the smallest change of F with F* U = W (U has full column rank for a robot block;
+  // the pseudo-inverse keeps this defined otherwise). Fixed maximum sizes: nothing is allocated.
+  const SmallMatrix UtU = U.transpose() * U;
+  const Eigen::CompleteOrthogonalDecomposition<SmallMatrix> cod(UtU);
+  const SmallMatrix UtU_inv = cod.pseudoInverse();
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 64, 16> residual = F * U;
+  residual -= N_after;
+  Fc.noalias() -= (residual * UtU_inv) * U.transpose();
+  N_.block(b.tangent_offset, 0, t, k) = N_after;
+  predict(id, Fc, Q);
+}
+
+void State::constrain_jacobian(std::span<const BlockId> blocks, Eigen::Ref<MatrixXd> H) const {
+  const int k = options_.nullspace_dim;
+  if (k == 0) return;
+  const int n = total_tangent(blocks);
+  RTSLAM_CHECK(H.cols() == n && H.rows() <= HN_oc_.rows(), "constrain_jacobian: size mismatch");
+  auto N = N_oc_.topRows(n);
+  int row = 0;
+  for (BlockId id : blocks) {
+    const BlockInfo& b = block(id);
+    N.middleRows(row, b.tangent_size()) = N_.block(b.tangent_offset, 0, b.tangent_size(), k);
+    row += b.tangent_size();
+  }
+  const SmallMatrix NtN = N.transpose() * N;
+  // Directions of N absent from these blocks (zero columns) are handled by the rank-revealing pseudo-inverse.
+  const Eigen::CompleteOrthogonalDecomposition<SmallMatrix> cod(NtN);
+  const SmallMatrix G = cod.pseudoInverse();
+  auto HN = HN_oc_.topRows(H.rows());
+  HN.noalias() = H * N;
+  H.noalias() -= (HN * G) * N.transpose();
 }
 
 void State::compute_PHt(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H) const {

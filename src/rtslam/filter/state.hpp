@@ -15,6 +15,15 @@
 // P ← P − W Wᵀ. An always-on check refuses an update that would make any variance non-positive. The orientation
 // reset Jacobian I − ½[δθ]× is neglected (it is identity to first order); stated here as MATH.md asks.
 //
+// Observability constraints (optional, `nullspace_dim` > 0; Hesch et al., "Consistency analysis and improvement of
+// vision-aided inertial navigation", 2014): the State then tracks, per block, its rows N_b of a basis N of the
+// directions the measurements cannot observe (for SLAM: a global translation and rotation of the world). A block
+// added as a function of others gets N_new = J N_parents; a robot's prediction may be constrained to map its basis
+// at the previous step onto the basis at the new estimate (predict_constrained), and measurement Jacobians are
+// projected so that H N = 0 (constrain_jacobian). Both are the smallest (Frobenius) changes that satisfy the
+// constraint; a plain EKF linearized at changing estimates would otherwise gain information along N and become
+// overconfident.
+//
 // Not thread-safe: workspaces are shared by the const queries too.
 #include <limits>
 #include <optional>
@@ -41,6 +50,7 @@ struct StateOptions {
   int ambient_capacity = 0;        // mean entries; 0 = tangent_capacity * 4 / 3 + 16
   int max_measurement_rows = 64;   // rows of one batched correction
   int max_block_tangent = 32;      // largest block (robot + calibration states)
+  int nullspace_dim = 0;           // columns of the tracked unobservable basis (0: no observability constraints)
   void validate() const;
 };
 
@@ -77,6 +87,9 @@ class State {
   std::optional<BlockId> add_block(const BlockLayout& layout, const Eigen::Ref<const VectorXd>& mean,
                                    std::span<const BlockId> parents, const Eigen::Ref<const MatrixXd>& J_new_parents,
                                    const Eigen::Ref<const MatrixXd>& Q);
+  /// Adds a block with an independent prior and its rows of the unobservable basis (nullspace_dim columns).
+  std::optional<BlockId> add_block(const BlockLayout& layout, const Eigen::Ref<const VectorXd>& mean,
+                                   const Eigen::Ref<const MatrixXd>& cov, const Eigen::Ref<const MatrixXd>& nullspace);
   /// Frees the block's ranges for reuse; every other block is untouched.
   void remove_block(BlockId id);
 
@@ -106,10 +119,23 @@ class State {
   };
   std::span<const Run> active_runs() const { return runs_; }
 
+  // --- unobservable basis (nullspace_dim > 0) -------------------------------------------------------------
+  int nullspace_dim() const { return options_.nullspace_dim; }
+  /// Block b's rows of the basis (tangent size × nullspace_dim).
+  Eigen::Block<const MatrixXd> nullspace(BlockId b) const;
+  /// Projects a compressed Jacobian over `blocks` (m × Σ tangent) onto the complement of the basis rows of those
+  /// blocks: H ← H (I − N (NᵀN)⁻¹ Nᵀ), so that H N = 0. No-op when nullspace_dim is 0.
+  void constrain_jacobian(std::span<const BlockId> blocks, Eigen::Ref<MatrixXd> H) const;
+
   // --- prediction -----------------------------------------------------------------------------------------
   /// After the caller has written the predicted mean of block b: P_bb ← F P_bb Fᵀ + Q, P_bo ← F P_bo for every
   /// other active block o. F and Q are (t × t), t the block's tangent size.
   void predict(BlockId b, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q);
+  /// predict() with an observability-constrained transition: with U = N_b (the block's basis rows before) and
+  /// W = N_after (the model's basis at the predicted mean), F* = F − (F U − W)(UᵀU)⁻¹Uᵀ (so F* U = W) is applied
+  /// and N_b ← W. Without a tracked basis (nullspace_dim 0) this is predict().
+  void predict_constrained(BlockId b, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q,
+                           const Eigen::Ref<const MatrixXd>& N_after);
 
   // --- correction -----------------------------------------------------------------------------------------
   /// S = H P Hᵀ + R for a compressed H over `blocks` (m × Σ tangent). Writes S (m × m).
@@ -143,6 +169,7 @@ class State {
   StateOptions options_;
   VectorXd x_;
   MatrixXd P_;
+  MatrixXd N_;             // tangent capacity × nullspace_dim: the tracked unobservable basis
   RangeAllocator ambient_alloc_;
   RangeAllocator tangent_alloc_;
   std::vector<BlockInfo> blocks_;
@@ -158,6 +185,9 @@ class State {
   mutable MatrixXd HP_;    // max rows × tangent capacity (innovation covariance)
   MatrixXd tmp_;           // max block tangent × tangent capacity (prediction)
   MatrixXd tmp_small_;     // max block tangent × max block tangent
+  MatrixXd F_oc_;          // max block tangent × max block tangent (constrained transition)
+  mutable MatrixXd N_oc_;  // tangent capacity × nullspace_dim (gathered basis rows of a Jacobian's blocks)
+  mutable MatrixXd HN_oc_; // max rows × nullspace_dim
 };
 
 }  // namespace rtslam::filter

@@ -37,6 +37,13 @@ void ImageSlamOptions::validate() const {
  if (robot != "constant_velocity" && robot != "inertial") {
     throw ConfigError(fmt::format("slam/robot = '{}' must be constant_velocity or inertial", robot));
   }
+  if (consistency != "none" && consistency != "oc") {
+    throw ConfigError(fmt::format("slam/consistency = '{}' must be none or oc", consistency));
+  }
+  if (consistency == "oc" && !known_landmarks.empty()) {
+    throw ConfigError("slam/consistency = oc needs the first robot pose as the gauge: it cannot be combined with "
+                      "slam/known_landmarks (whose points define the world frame)");
+  }
   imu.validate();
   if (known_landmarks_convention != "scenelib" && known_landmarks_convention != "robot") {
     throw ConfigError(fmt::format("slam/known_landmarks_convention = '{}' must be robot or scenelib",
@@ -53,6 +60,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     YamlMap s = top.child("slam");
     s.get("seed", o.seed);
     s.get("robot", o.robot);
+    s.get("consistency", o.consistency);
     s.get("initial_velocity_std", o.initial_velocity_std);
     s.get("state_capacity", o.state_capacity);
     s.get("max_frames", o.max_frames);
@@ -96,6 +104,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   YAML::Node root;
   root["slam"]["seed"] = o.seed;
   root["slam"]["robot"] = o.robot;
+  root["slam"]["consistency"] = o.consistency;
   root["slam"]["initial_velocity_std"] = o.initial_velocity_std;
   root["slam"]["state_capacity"] = o.state_capacity;
   root["slam"]["max_frames"] = o.max_frames;
@@ -231,6 +240,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   slam::World world;
   filter::StateOptions so;
   so.tangent_capacity = o.state_capacity;
+  if (o.consistency == "oc") so.nullspace_dim = slam::Robot::kNullspaceDim;
   slam::Map& map = world.add_map(so);
   auto map_manager = std::make_unique<strategies::PolicyMapManager>(o.map);
   const strategies::PolicyMapManager& mm = *map_manager;

@@ -11,7 +11,7 @@
 // the same output.
 //
 // YAML layout (every key optional, unknown keys are errors naming the key; docs/configuration.md):
-//   slam:        {seed, robot: constant_velocity|inertial, initial_velocity_std, state_capacity, max_frames, camera, init_from_groundtruth, rate_hz,
+//   slam:        {seed, robot: constant_velocity|inertial, consistency: none|oc, initial_velocity_std, state_capacity, max_frames, camera, init_from_groundtruth, rate_hz,
 //                 known_landmarks, known_landmarks_convention, overlay_frame, overlay_path}
 //   motion:      {sigma_v, sigma_w}                (constant-velocity robot)
 //   imu:         see inertial_init.hpp             (inertial robot)
@@ -40,6 +40,10 @@ namespace rtslam::pipeline {
 struct ImageSlamOptions {
   std::uint64_t seed = 1;
   std::string robot = "constant_velocity";  // constant_velocity | inertial
+  // none: plain EKF; oc: observability-constrained EKF (filter/state.hpp): the filter tracks the unobservable
+  // global translation and rotation, constrains the robot's transition and projects every measurement Jacobian so
+  // that the linearized system cannot gain information along them (consistent covariances, MATH.md "Consistency").
+  std::string consistency = "none";
   double initial_velocity_std = 0.5;  // m/s and rad/s: prior std of v and ω (RT-SLAM)
   int state_capacity = 600;           // covariance rows of the filter storage (>= map_manager.map_size)
   int max_frames = 0;                 // stop after this many images (0: all)

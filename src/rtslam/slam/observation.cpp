@@ -27,6 +27,8 @@ bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean
     obs.H.setZero(2, tr + tl);
     obs.H.leftCols<6>().noalias() = J_z_h * J_h_TWS * J_TWS_TWR;
     obs.H.rightCols(tl).noalias() = J_z_h * J_h_L;
+    // Observability constraints (when the filter tracks its unobservable basis): H N = 0.
+    state.constrain_jacobian(obs.blocks, obs.H);
     obs.lin_T_WS << T_WS.p, math::quat_to_wxyz(T_WS.q);
     obs.lin_landmark = mean.segment(state.block(lmk.block()).ambient_offset, state.block(lmk.block()).ambient_size());
   }

@@ -30,7 +30,17 @@ Sensor& Robot::add_sensor(std::unique_ptr<Sensor> sensor) {
 
 void Robot::attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0) {
   RTSLAM_CHECK(map_ == nullptr, "robot already attached to a map");
-  const auto block = map.state().add_block(layout(), mean, cov);
+  std::optional<filter::BlockId> block;
+  if (map.state().nullspace_dim() > 0) {
+    RTSLAM_CHECK(map.state().nullspace_dim() == kNullspaceDim,
+                 fmt::format("robot '{}': the map tracks {} unobservable directions, robots give {}", name_,
+                             map.state().nullspace_dim(), kNullspaceDim));
+    Eigen::MatrixXd N(layout().tangent_size(), kNullspaceDim);
+    nullspace(mean, N);
+    block = map.state().add_block(layout(), mean, cov, N);
+  } else {
+    block = map.state().add_block(layout(), mean, cov);
+  }
   if (!block) throw ConfigError(fmt::format("robot '{}': the map has no room for its state", name_));
   map_ = &map;
   id_ = id;
@@ -56,9 +66,29 @@ bool ConstantVelocityRobot::predict_to(TimeNs t) {
   const models::Vector13d x = state.mean(block_);
   models::constant_velocity_predict(x, dt, params_, x_tmp_, &F_, &Q_);
   state.mean(block_) = x_tmp_;
-  state.predict(block_, F_, Q_);
+  if (state.nullspace_dim() > 0) {
+    nullspace(x_tmp_, N_);
+    state.predict_constrained(block_, F_, Q_, N_);
+  } else {
+    state.predict(block_, F_, Q_);
+  }
   time_ = t;
   return true;
+}
+
+namespace {
+// Rows of the global-frame basis [t φ] for a pose [p q] at the start of a robot block (tangent [δp δθ]).
+void pose_nullspace(const Eigen::Vector3d& p, const Eigen::Vector4d& q_wxyz, Eigen::Ref<Eigen::MatrixXd> N) {
+  N.setZero();
+  N.block<3, 3>(0, 0).setIdentity();
+  N.block<3, 3>(0, 3) = -math::skew(p);
+  N.block<3, 3>(3, 3) = math::quat_from_wxyz(q_wxyz).toRotationMatrix().transpose();
+}
+}  // namespace
+
+void ConstantVelocityRobot::nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const {
+  pose_nullspace(x.head<3>(), x.segment<4>(3), N);
+  N.block<3, 3>(6, 3) = -math::skew(x.segment<3>(7));
 }
 
 InertialRobot::InertialRobot(models::InertialParams params, std::string name)
@@ -139,8 +169,20 @@ bool InertialRobot::predict_to(TimeNs t) {
     }
   }
   state.mean(block_) = x_;
-  state.predict(block_, Phi_, Qacc_);
+  if (state.nullspace_dim() > 0) {
+    nullspace(x_, N_);
+    state.predict_constrained(block_, Phi_, Qacc_, N_);
+  } else {
+    state.predict(block_, Phi_, Qacc_);
+  }
   return true;
+}
+
+void InertialRobot::nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const {
+  using I = models::InertialIndex;
+  pose_nullspace(x.head<3>(), x.segment<4>(I::kQ), N);
+  N.block<3, 3>(I::kDv, 3) = -math::skew(x.segment<3>(I::kV));
+  N.block<3, 3>(I::kDg, 3) = -math::skew(x.segment<3>(I::kG));
 }
 
 }  // namespace rtslam::slam

@@ -34,6 +34,12 @@ class Robot {
   /// Moves the robot (mean and covariance) to time t. Returns false if t is before the robot's time.
   virtual bool predict_to(TimeNs t) = 0;
   virtual filter::BlockLayout layout() const = 0;
+  /// The block's rows (tangent × 6) of the directions no exteroceptive measurement can observe, at the block mean
+  /// x: a global translation t and rotation φ of the world, [t φ] (filter observability constraints). For a pose
+  /// [p q ...] in W: δp = t − [p]× φ, δθ = R_WRᵀ φ; vectors v in W rotate (δv = −[v]× φ); body-frame states do
+  /// not move.
+  virtual void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const = 0;
+  static constexpr int kNullspaceDim = 6;
 
   Sensor& add_sensor(std::unique_ptr<Sensor> sensor);
   const std::vector<std::unique_ptr<Sensor>>& sensors() const { return sensors_; }
@@ -61,6 +67,8 @@ class ConstantVelocityRobot final : public Robot {
   explicit ConstantVelocityRobot(models::ConstantVelocityParams params, std::string name = "robot");
   bool predict_to(TimeNs t) override;
   filter::BlockLayout layout() const override { return static_layout(); }
+  /// [p q v ω]: p and v in W move with the world, ω (robot frame) does not.
+  void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const override;
   static filter::BlockLayout static_layout();
   const models::ConstantVelocityParams& params() const { return params_; }
 
@@ -69,6 +77,7 @@ class ConstantVelocityRobot final : public Robot {
   models::Vector13d x_tmp_;
   models::Matrix12d F_;
   models::Matrix12d Q_;
+  Eigen::Matrix<double, 12, 6> N_;
 };
 
 /// The inertial robot [p q v a_b ω_b g] (../shared/MATH.md "Robots", models/robots/inertial.hpp): IMU samples drive
@@ -86,6 +95,9 @@ class InertialRobot final : public Robot {
   /// Integrates to t; DataError if the IMU does not cover t. False if t is before the robot's time.
   bool predict_to(TimeNs t) override;
   filter::BlockLayout layout() const override { return static_layout(); }
+  /// [p q v a_b ω_b g]: p, v and the gravity vector g (all in W) move with the world; the biases do not. With g a
+  /// state, every rotation of the world is unobservable, not only the yaw.
+  void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const override;
   static filter::BlockLayout static_layout();
   const models::InertialParams& params() const { return params_; }
   long samples_integrated() const { return steps_; }
@@ -102,6 +114,7 @@ class InertialRobot final : public Robot {
   long steps_ = 0;
   models::Vector19d x_;
   models::Matrix18d F_, Q_, Phi_, Qacc_, tmp_;
+  Eigen::Matrix<double, 18, 6> N_;
 };
 
 }  // namespace rtslam::slam

@@ -202,7 +202,8 @@ void write_overlay(const std::string& path, const cv::Mat& grey,
 
 }  // namespace
 
-ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame) {
+ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame,
+                               const std::function<void(const ImageSlamFrame&)>& observer) {
   o.validate();
   if (!ds.source) throw ConfigError(fmt::format("dataset '{}' has no measurement source", ds.name));
   if (o.camera >= static_cast<int>(ds.rig.cameras.size())) {
@@ -344,6 +345,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
     }
     est.cov = map.state().cov(robot->block()).topLeftCorner<6, 6>();
     result.estimate.poses.push_back(est);
+    if (observer) observer(ImageSlamFrame{done, t, &map, &dm.last_frame()});
     ++done;
     if (on_frame) on_frame(consumed, n_total);
     if (o.max_frames > 0 && done >= o.max_frames) stop = true;

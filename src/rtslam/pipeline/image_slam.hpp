@@ -101,8 +101,19 @@ struct ImageSlamResult {
 /// `options.seed` and `options.sim_duration_s` when > 0, as an in-memory dataset rendered on the fly.
 io::Dataset make_sim_dataset(const ImageSlamOptions& options);
 
-/// Runs the pipeline over the dataset's images. `on_frame(done, total)` after each image (total 0 if unknown).
+/// What an observer sees after each processed image: the map (estimates, landmarks with their descriptors) and
+/// the data manager's report of every visible landmark in that image.
+struct ImageSlamFrame {
+  int index = 0;  // processed images before this one (the landmarks' frame_created counts the same)
+  TimeNs t = 0;   // image time in the IMU clock (t_cam + t_d)
+  const slam::Map* map = nullptr;
+  const std::vector<strategies::ActiveSearchDataManager::FrameMatch>* matches = nullptr;
+};
+
+/// Runs the pipeline over the dataset's images. `on_frame(done, total)` after each image taken from the stream
+/// (total 0 if unknown); `observer` after each image the filter processed.
 ImageSlamResult run_image_slam(io::Dataset& dataset, const ImageSlamOptions& options,
-                               const std::function<void(int, int)>& on_frame = {});
+                               const std::function<void(int, int)>& on_frame = {},
+                               const std::function<void(const ImageSlamFrame&)>& observer = {});
 
 }  // namespace rtslam::pipeline

@@ -3,6 +3,8 @@
 //   two-level ZNCC of a 15x15 patch over a 41x41 region <= 20 us; one 31x31 -> 15x15 warp <= 5 us.
 // Run: build/bench/vision/bench_vision --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // Real frames come from ../shared/datasets (EuRoC cam0, MonoSLAM); a benchmark reports an error if they are absent.
+// The simd argument selects the kernels (0 scalar, 1 SSE2, 2 AVX2; see rtslam/vision/simd.hpp); a level the CPU
+// does not run is reported as an error.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -16,6 +18,7 @@
 
 #include "rtslam/vision/harris.hpp"
 #include "rtslam/vision/integral.hpp"
+#include "rtslam/vision/simd.hpp"
 #include "rtslam/vision/warp.hpp"
 #include "rtslam/vision/zncc.hpp"
 
@@ -53,9 +56,28 @@ std::string mono_path(int k) {
   return kData + name;
 }
 
+// Selects the SIMD level of state.range(arg) for one benchmark; false (and an error) if the CPU does not run it.
+class SimdScope {
+ public:
+  SimdScope(benchmark::State& state, int arg) : previous_(simd_level()) {
+    const auto level = static_cast<SimdLevel>(state.range(arg));
+    ok_ = set_simd_level(level) == level;
+    if (!ok_) state.SkipWithError("SIMD level not supported by this CPU");
+  }
+  ~SimdScope() { set_simd_level(previous_); }
+  bool ok() const { return ok_; }
+  const char* name() const { return to_string(simd_level()); }
+
+ private:
+  SimdLevel previous_;
+  bool ok_ = false;
+};
+
 void BM_IntegralImage752x480(benchmark::State& state) {
   const Image& img = euroc_frame();
   if (img.empty()) return state.SkipWithError("dataset euroc-v101-static not found");
+  const SimdScope simd(state, 1);
+  if (!simd.ok()) return;
   const bool squares = state.range(0) != 0;
   IntegralImages ii;
   for (auto _ : state) {
@@ -63,14 +85,52 @@ void BM_IntegralImage752x480(benchmark::State& state) {
     benchmark::DoNotOptimize(ii.sum_table());
     benchmark::ClobberMemory();
   }
-  state.SetLabel(squares ? "sum + squared sum" : "sum only");
+  state.SetLabel(std::string(squares ? "sum + squared sum, " : "sum only, ") + simd.name());
 }
-BENCHMARK(BM_IntegralImage752x480)->Arg(1)->Arg(0)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_IntegralImage752x480)
+    ->ArgNames({"squares", "simd"})
+    ->Args({1, 2})
+    ->Args({0, 2})
+    ->Args({1, 1})
+    ->Args({1, 0})
+    ->Unit(benchmark::kMicrosecond);
+
+// What bounds the integral image: the memory traffic of its two uint32 tables alone, same buffers and layout.
+// Arg 0: each table row is the row above plus a constant (the loads and stores of the integral image without its
+// prefix sums); arg 1: the tables are filled (stores only).
+void BM_IntegralTableTraffic752x480(benchmark::State& state) {
+  const int w = 752, h = 480, stride = w + 1;
+  std::vector<std::uint32_t> sum(static_cast<std::size_t>(stride) * (h + 1), 0);
+  std::vector<std::uint32_t> sq(sum.size(), 0);
+  const bool fill_only = state.range(0) != 0;
+  for (auto _ : state) {
+    if (fill_only) {
+      std::fill(sum.begin(), sum.end(), 1u);
+      std::fill(sq.begin(), sq.end(), 2u);
+    } else {
+      for (int y = 1; y <= h; ++y) {
+        std::uint32_t* s = sum.data() + static_cast<std::size_t>(y) * stride;
+        std::uint32_t* q = sq.data() + static_cast<std::size_t>(y) * stride;
+        for (int x = 1; x <= w; ++x) {
+          s[x] = s[x - stride] + 1;
+          q[x] = q[x - stride] + 2;
+        }
+      }
+    }
+    benchmark::DoNotOptimize(sum.data());
+    benchmark::DoNotOptimize(sq.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetLabel(fill_only ? "fill of both tables" : "row above + constant, both tables");
+}
+BENCHMARK(BM_IntegralTableTraffic752x480)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 // Harris best corner in 64x64 cells of a real frame (cycling over the cells of the frame).
 void BM_HarrisBestCorner64x64(benchmark::State& state) {
   const Image& img = euroc_frame();
   if (img.empty()) return state.SkipWithError("dataset euroc-v101-static not found");
+  const SimdScope simd(state, 1);
+  if (!simd.ok()) return;
   HarrisOptions o;
   o.response = state.range(0) == 0 ? HarrisResponse::harris : HarrisResponse::min_eigen;
   HarrisDetector det(o);
@@ -84,10 +144,16 @@ void BM_HarrisBestCorner64x64(benchmark::State& state) {
     benchmark::DoNotOptimize(c);
     i = (i + 1) % cells.size();
   }
-  state.SetLabel(o.response == HarrisResponse::harris ? "harris" : "min_eigen");
+  state.SetLabel(std::string(o.response == HarrisResponse::harris ? "harris, " : "min_eigen, ") + simd.name());
   state.counters["found_rate"] = static_cast<double>(found) / static_cast<double>(state.iterations());
 }
-BENCHMARK(BM_HarrisBestCorner64x64)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_HarrisBestCorner64x64)
+    ->ArgNames({"min_eigen", "simd"})
+    ->Args({0, 2})
+    ->Args({1, 2})
+    ->Args({0, 1})
+    ->Args({0, 0})
+    ->Unit(benchmark::kMicrosecond);
 
 // ZNCC of Harris-selected 15x15 patches of MonoSLAM frame k searched over 41x41 positions in frame k + 1.
 struct TrackingSet {
@@ -121,6 +187,8 @@ const TrackingSet& tracking_set() {
 void BM_Zncc15x15Over41x41(benchmark::State& state) {
   const TrackingSet& set = tracking_set();
   if (set.patches.empty()) return state.SkipWithError("dataset monoslam-davison not found");
+  const SimdScope simd(state, 2);
+  if (!simd.ok()) return;
   ZnccOptions o;
   o.two_level = state.range(0) != 0;
   o.partial_correlation = state.range(1) != 0;
@@ -135,15 +203,17 @@ void BM_Zncc15x15Over41x41(benchmark::State& state) {
     i = (i + 1) % set.patches.size();
   }
   state.SetLabel(std::string(o.two_level ? "two-level" : "exhaustive") +
-                 (o.partial_correlation ? " + bounded partial correlation" : ""));
+                 (o.partial_correlation ? " + bounded partial correlation, " : ", ") + simd.name());
   state.counters["found_rate"] = static_cast<double>(found) / static_cast<double>(state.iterations());
   state.counters["positions"] = evaluated / static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_Zncc15x15Over41x41)
-    ->Args({1, 1})
-    ->Args({1, 0})
-    ->Args({0, 1})
-    ->Args({0, 0})
+    ->ArgNames({"two_level", "partial", "simd"})
+    ->Args({1, 1, 1})
+    ->Args({1, 0, 1})
+    ->Args({0, 1, 1})
+    ->Args({0, 0, 1})
+    ->Args({1, 1, 0})
     ->Unit(benchmark::kMicrosecond);
 
 void BM_PredictAppearance31To15(benchmark::State& state) {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
 
@@ -126,6 +127,63 @@ TEST(Harris, BestCornerEqualsBruteForceOnRandomAndRealImages) {
     }
   }
   EXPECT_GT(n_found, n_trials / 3);  // the comparison is not vacuous
+}
+
+TEST(Harris, EverySimdLevelFindsExactlyTheSameCorners) {
+  Rng rng(23);
+  std::vector<Image> images;
+  images.push_back(test::from_mat(test::smooth_texture(150, 110, 1.2, rng)));
+  images.push_back(test::random_image(90, 70, rng));
+  const auto frames = test::euroc_frames();
+  if (!frames.empty()) images.push_back(test::load_gray(frames[20]));
+  std::uniform_int_distribution<int> d(0, 1 << 20);
+  int n_found = 0, n_brute = 0;
+  for (const auto response : {HarrisResponse::harris, HarrisResponse::min_eigen}) {
+    for (const int ws : {3, 5, 9}) {
+      for (const auto subpixel : {HarrisSubpixel::edge_lines, HarrisSubpixel::quadratic}) {
+        HarrisOptions o;
+        o.response = response;
+        o.window_size = ws;
+        o.subpixel = subpixel;
+        o.border_px = 2;
+        for (const Image& img : images) {
+          for (int k = 0; k < 12; ++k) {
+            // ROIs of 1..80 px (every tail length of the 4- and 8-lane kernels), some across the image border.
+            const Roi roi{d(rng) % img.width() - 6, d(rng) % img.height() - 6, 1 + d(rng) % 80, 1 + d(rng) % 80};
+            std::optional<Corner> ref;
+            {
+              test::ScopedSimdLevel scalar(SimdLevel::scalar);
+              ref = HarrisDetector(o).best_corner(img, roi);
+            }
+            if (k < 3) {  // the scalar level against the brute-force reference
+              const BruteCorner brute = brute_best(img, roi, o);
+              ASSERT_EQ(ref.has_value(), brute.found);
+              ++n_brute;
+              if (brute.found) {
+                EXPECT_EQ(ref->u_px, brute.u);
+                EXPECT_EQ(ref->v_px, brute.v);
+                EXPECT_NEAR(ref->score, brute.score, 1e-9 * std::max(1.0, std::abs(brute.score)));
+              }
+            }
+            n_found += ref.has_value();
+            for (const SimdLevel level : test::simd_levels()) {
+              test::ScopedSimdLevel guard(level);
+              const auto got = HarrisDetector(o).best_corner(img, roi);
+              ASSERT_EQ(got.has_value(), ref.has_value()) << to_string(level);
+              if (!ref) continue;
+              EXPECT_EQ(got->u_px, ref->u_px) << to_string(level);
+              EXPECT_EQ(got->v_px, ref->v_px) << to_string(level);
+              EXPECT_EQ(got->score, ref->score) << to_string(level);  // bit-identical, not only close
+              EXPECT_EQ(got->u, ref->u) << to_string(level);
+              EXPECT_EQ(got->v, ref->v) << to_string(level);
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(n_found, 100);  // the comparison is not vacuous
+  EXPECT_GT(n_brute, 100);
 }
 
 TEST(Harris, FindsRenderedCornersWithinAThirdOfAPixel) {

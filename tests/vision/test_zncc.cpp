@@ -226,6 +226,59 @@ TEST(Zncc, BoundedPartialCorrelationNeverChangesTheResult) {
   EXPECT_GT(pruned, evaluated / 4);  // it does save work
 }
 
+TEST(Zncc, EverySimdLevelReturnsExactlyTheSameMatches) {
+  // Two frames: real ones when available, else a texture and a shifted copy.
+  Rng rng(29);
+  Image f0 = test::load_gray(test::monoslam_frame(200)), f1 = test::load_gray(test::monoslam_frame(201));
+  if (f0.empty() || f1.empty()) {
+    const cv::Mat tex = test::smooth_texture(200, 150, 1.5, rng);
+    f0 = test::from_mat(tex);
+    const cv::Mat A = (cv::Mat_<double>(2, 3) << 1, 0, 1.3, 0, 1, -0.7);
+    cv::Mat shifted;
+    cv::warpAffine(tex, shifted, A, tex.size(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    f1 = test::from_mat(shifted);
+  }
+  int n_found = 0, n_pruned = 0;
+  for (const int size : {15, 11, 21, 31}) {  // one or two 16-byte blocks per template row
+    for (const bool two_level : {true, false}) {
+      for (const bool partial : {true, false}) {
+        ZnccOptions o;
+        o.patch_size = size;
+        o.two_level = two_level;
+        o.partial_correlation = partial;
+        o.threshold = 0.5;
+        for (int k = 0; k < 12; ++k) {
+          const int h = size / 2;
+          const int u = h + static_cast<int>(randu(rng, 0, f0.width() - 2 * h - 1));
+          const int v = h + static_cast<int>(randu(rng, 0, f0.height() - 2 * h - 1));
+          Patch p;
+          ASSERT_TRUE(p.extract(f0, u, v, size));
+          // Ellipses, and boxes reaching the right border (where rows cannot be read over the padded width).
+          const SearchEllipse e = k % 3 == 0   ? random_ellipse({u + randu(rng, -3, 3), v + randu(rng, -3, 3)}, rng)
+                                  : k % 3 == 1 ? SearchEllipse::box({u + 1.0, v - 1.0}, 12.0, 9.0)
+                                               : SearchEllipse::box({f1.width() - 1.0 - h, v + 0.0}, 14.0, 10.0);
+          MatchResult ref;
+          {
+            test::ScopedSimdLevel scalar(SimdLevel::scalar);
+            ref = ZnccMatcher(o).match(p, f1, e);
+          }
+          n_found += ref.found;
+          n_pruned += ref.n_pruned;
+          for (const SimdLevel level : test::simd_levels()) {
+            test::ScopedSimdLevel guard(level);
+            const MatchResult r = ZnccMatcher(o).match(p, f1, e);
+            ASSERT_TRUE(same_result(r, ref)) << to_string(level) << " size " << size << " at " << u << "," << v;
+            EXPECT_EQ(r.n_evaluated, ref.n_evaluated) << to_string(level);
+            EXPECT_EQ(r.n_pruned, ref.n_pruned) << to_string(level);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(n_found, 50);  // the comparison is not vacuous
+  EXPECT_GT(n_pruned, 0);
+}
+
 namespace {
 
 struct Agreement {

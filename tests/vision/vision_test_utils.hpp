@@ -10,6 +10,7 @@
 
 #include "rtslam/core/random.hpp"
 #include "rtslam/vision/image.hpp"
+#include "rtslam/vision/simd.hpp"
 
 namespace rtslam::vision::test {
 
@@ -77,6 +78,25 @@ inline cv::Mat smooth_texture(int w, int h, double sigma, Rng& rng) {
   blurred.convertTo(out, CV_8U, 45.0 / sd[0], 128.0 - 45.0 * mean[0] / sd[0]);
   return out;
 }
+
+/// The SIMD levels this CPU runs, lowest first: scalar, then SSE2 and AVX2 when available.
+inline std::vector<SimdLevel> simd_levels() {
+  std::vector<SimdLevel> out;
+  for (int l = 0; l <= static_cast<int>(best_simd_level()); ++l) out.push_back(static_cast<SimdLevel>(l));
+  return out;
+}
+
+/// Selects a SIMD level for the lifetime of the guard, then restores the previous one.
+class ScopedSimdLevel {
+ public:
+  explicit ScopedSimdLevel(SimdLevel level) : previous_(simd_level()) { set_simd_level(level); }
+  ~ScopedSimdLevel() { set_simd_level(previous_); }
+  ScopedSimdLevel(const ScopedSimdLevel&) = delete;
+  ScopedSimdLevel& operator=(const ScopedSimdLevel&) = delete;
+
+ private:
+  SimdLevel previous_;
+};
 
 /// Bilinear sample of a float or 8-bit Mat (written here, independently of vision::sample_bilinear).
 inline double bilinear(const cv::Mat& m, double x, double y) {

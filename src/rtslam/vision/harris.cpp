@@ -7,11 +7,28 @@
 
 #include <fmt/format.h>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
+#include "rtslam/vision/simd.hpp"
+
+#if defined(__x86_64__)
+#include <immintrin.h>
 #endif
 
 namespace rtslam::vision {
+
+namespace {
+
+// The response of a normalized structure matrix [a c; c b]: Harris det - k tr², or λmin. Every SIMD level evaluates
+// these same double expressions, so all levels return identical responses.
+inline double response_of(double a, double b, double c, double k, bool harris) {
+  if (harris) {
+    const double tr = a + b;
+    return a * b - c * c - k * tr * tr;
+  }
+  const double half_diff = 0.5 * (a - b);
+  return 0.5 * (a + b) - std::sqrt(half_diff * half_diff + c * c);
+}
+
+}  // namespace
 
 void HarrisOptions::validate() const {
   const std::string where = "harris options";
@@ -62,12 +79,7 @@ HarrisOptions HarrisOptions::from_yaml(YamlMap& map) {
 HarrisDetector::HarrisDetector(HarrisOptions options) : options_(options) { options_.validate(); }
 
 double HarrisDetector::response(double a, double b, double c) const {
-  if (options_.response == HarrisResponse::harris) {
-    const double tr = a + b;
-    return a * b - c * c - options_.k * tr * tr;
-  }
-  const double half_diff = 0.5 * (a - b);
-  return 0.5 * (a + b) - std::sqrt(half_diff * half_diff + c * c);
+  return response_of(a, b, c, options_.k, options_.response == HarrisResponse::harris);
 }
 
 bool HarrisDetector::passes_edge_test(double a, double b, double c) const {
@@ -86,43 +98,332 @@ void clip(int& lo, int& hi, int a, int b) {
   hi = std::min(hi, b);
 }
 
-// Dx², Dy², DxDy of one row (mid[-1] and mid[w] must exist). The outputs never alias the inputs (restrict lets the
-// compiler vectorize despite the 8-bit reads).
-void gradient_products(const std::uint8_t* __restrict up, const std::uint8_t* __restrict mid,
-                       const std::uint8_t* __restrict down, int w, std::uint32_t* __restrict pxx,
-                       std::uint32_t* __restrict pyy, std::uint32_t* __restrict pxy) {
-  for (int x = 0; x < w; ++x) {
+// Integral tables of Dx², Dy², DxDy over the gradient area, one row at a time. A row kernel gets the image rows
+// above, at and below the table row (up, mid, down at the area's first column; mid[-1] and mid[w] must exist) and
+// writes the table row cur[x + 1] = cur[x + 1 - ts] + Σ_{i<=x} product[i] for x in [0, w) of the three planes,
+// which lie `plane` entries apart (the caller sets cur[0]). Accumulation is modulo 2^32 (see best_corner).
+using TableRow = void (*)(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* down, int w,
+                          std::uint32_t* cur, std::ptrdiff_t ts, std::ptrdiff_t plane);
+
+// Plain C++, also the tail of the SIMD kernels: columns [x, w) from the row sums of columns [0, x).
+void table_row_from(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* down, int x, int w,
+                    std::uint32_t* cur, std::ptrdiff_t ts, std::ptrdiff_t plane, std::uint32_t rxx, std::uint32_t ryy,
+                    std::uint32_t rxy) {
+  std::uint32_t* cxx = cur;
+  std::uint32_t* cyy = cur + plane;
+  std::uint32_t* cxy = cur + 2 * plane;
+  for (; x < w; ++x) {
     const int dx = static_cast<int>(mid[x + 1]) - static_cast<int>(mid[x - 1]);
     const int dy = static_cast<int>(down[x]) - static_cast<int>(up[x]);
-    pxx[x] = static_cast<std::uint32_t>(dx * dx);
-    pyy[x] = static_cast<std::uint32_t>(dy * dy);
-    pxy[x] = static_cast<std::uint32_t>(dx * dy);
+    rxx += static_cast<std::uint32_t>(dx * dx);
+    ryy += static_cast<std::uint32_t>(dy * dy);
+    rxy += static_cast<std::uint32_t>(dx * dy);
+    cxx[x + 1] = cxx[x + 1 - ts] + rxx;
+    cyy[x + 1] = cyy[x + 1 - ts] + ryy;
+    cxy[x + 1] = cxy[x + 1 - ts] + rxy;
   }
 }
 
-// One row of a modular integral table: cur[x + 1] = prev[x + 1] + Σ_{i<=x} vals[i] (mod 2^32); cur[0] = 0.
-void prefix_row(const std::uint32_t* vals, int w, const std::uint32_t* prev, std::uint32_t* cur) {
-  cur[0] = 0;
-  int x = 0;
-  std::uint32_t run = 0;
-#if defined(__SSE2__)
-  __m128i carry = _mm_setzero_si128();
-  for (; x + 4 <= w; x += 4) {
-    __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(vals + x));
-    v = _mm_add_epi32(v, _mm_slli_si128(v, 4));
-    v = _mm_add_epi32(v, _mm_slli_si128(v, 8));
-    v = _mm_add_epi32(v, carry);
-    carry = _mm_shuffle_epi32(v, _MM_SHUFFLE(3, 3, 3, 3));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(cur + x + 1),
-                     _mm_add_epi32(v, _mm_loadu_si128(reinterpret_cast<const __m128i*>(prev + x + 1))));
-  }
-  run = static_cast<std::uint32_t>(_mm_cvtsi128_si32(carry));
-#endif
-  for (; x < w; ++x) {
-    run += vals[x];
-    cur[x + 1] = prev[x + 1] + run;
-  }
+void table_row_scalar(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* down, int w,
+                      std::uint32_t* cur, std::ptrdiff_t ts, std::ptrdiff_t plane) {
+  table_row_from(up, mid, down, 0, w, cur, ts, plane, 0, 0, 0);
 }
+
+// Responses of a run of n window positions in one row: out[i] for the window whose top-left table entries are
+// xx[i], xx[i] + plane (Dy²) and xx[i] + 2 plane (DxDy), `down` = ws * ts entries above its bottom-left ones.
+// Returns the largest response. Every level evaluates the expressions of response_of, in the same order.
+struct ResponseRun {
+  const std::uint32_t* xx;
+  std::ptrdiff_t plane;
+  std::ptrdiff_t down;
+  int ws;
+  int n;
+  double scale;  // 1 / (4 ws²): D = 2 g, and the mean over the window
+  double k;
+  bool harris;
+};
+using ResponseRow = double (*)(const ResponseRun& run, double* out);
+
+// Window sum of one plane at table entry p (modular difference, exact: see best_corner).
+inline double window_value(const std::uint32_t* p, std::ptrdiff_t down, int ws, double scale) {
+  return static_cast<std::int32_t>(p[down + ws] - p[down] - p[ws] + p[0]) * scale;
+}
+
+double response_row_from(const ResponseRun& r, int i, double best, double* out) {
+  for (; i < r.n; ++i) {
+    const std::uint32_t* p = r.xx + i;
+    const double a = window_value(p, r.down, r.ws, r.scale);
+    const double b = window_value(p + r.plane, r.down, r.ws, r.scale);
+    const double c = window_value(p + 2 * r.plane, r.down, r.ws, r.scale);
+    out[i] = response_of(a, b, c, r.k, r.harris);
+    best = std::max(best, out[i]);
+  }
+  return best;
+}
+
+double response_row_scalar(const ResponseRun& r, double* out) {
+  return response_row_from(r, 0, -std::numeric_limits<double>::infinity(), out);
+}
+
+// The largest window sum of Dx² + Dy² (the unnormalized trace) over the run. It bounds every response of the run
+// (see best_corner); it fits uint32 (2 * 181² * 65025 < 2^32).
+using TraceRow = std::uint32_t (*)(const ResponseRun& run);
+
+// Window sum of Dx² + Dy² at table entry p (modular differences; the sum is exact).
+inline std::uint32_t trace_value(const std::uint32_t* p, std::ptrdiff_t plane, std::ptrdiff_t down, int ws) {
+  const std::uint32_t* q = p + plane;
+  return (p[down + ws] - p[down] - p[ws] + p[0]) + (q[down + ws] - q[down] - q[ws] + q[0]);
+}
+
+std::uint32_t trace_row_from(const ResponseRun& r, int i, std::uint32_t best) {
+  for (; i < r.n; ++i) best = std::max(best, trace_value(r.xx + i, r.plane, r.down, r.ws));
+  return best;
+}
+
+std::uint32_t trace_row_scalar(const ResponseRun& r) { return trace_row_from(r, 0, 0); }
+
+#if defined(__x86_64__)
+
+// SSE2 kernels. Products are exact in int32 (|D| <= 255). Prefix sums are built in registers without the running
+// row sum, which is added afterwards, so consecutive steps depend on each other through one add per plane. Products
+// enter as pair sums: pmaddwd of the int16 derivatives gives d[2i] e[2i] + d[2i + 1] e[2i + 1], whose prefixes are
+// the row prefixes at the odd pixels; an even pixel's prefix is its odd neighbour's minus that neighbour's product.
+inline __m128i prefix4_epu32(__m128i v) {
+  v = _mm_add_epi32(v, _mm_slli_si128(v, 4));
+  return _mm_add_epi32(v, _mm_slli_si128(v, 8));
+}
+inline __m128i last_epu32(__m128i v) { return _mm_shuffle_epi32(v, _MM_SHUFFLE(3, 3, 3, 3)); }
+
+// One plane, 8 pixels: d, e are the int16 derivatives (product d e), d_odd is d with its even lanes zeroed.
+// cur[0..8) = cur[-ts..8-ts) + carry + prefix; the carry becomes the row sum so far.
+inline void products8_store(__m128i d, __m128i d_odd, __m128i e, std::uint32_t* cur, std::ptrdiff_t ts,
+                            __m128i* carry) {
+  const __m128i odd = _mm_add_epi32(prefix4_epu32(_mm_madd_epi16(d, e)), *carry);
+  const __m128i even = _mm_sub_epi32(odd, _mm_madd_epi16(d_odd, e));
+  *carry = last_epu32(odd);
+  _mm_storeu_si128(
+      reinterpret_cast<__m128i*>(cur),
+      _mm_add_epi32(_mm_unpacklo_epi32(even, odd), _mm_loadu_si128(reinterpret_cast<const __m128i*>(cur - ts))));
+  _mm_storeu_si128(
+      reinterpret_cast<__m128i*>(cur + 4),
+      _mm_add_epi32(_mm_unpackhi_epi32(even, odd), _mm_loadu_si128(reinterpret_cast<const __m128i*>(cur + 4 - ts))));
+}
+
+// Columns [x, x + 8) of a table row (the SSE2 step, also the 8-pixel tail of the AVX2 kernel).
+inline void table_step8(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* down, int x,
+                        std::uint32_t* cur, std::ptrdiff_t ts, std::ptrdiff_t plane, __m128i carry[3]) {
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i odd_mask = _mm_set1_epi32(static_cast<int>(0xFFFF0000u));
+  auto load8 = [&](const std::uint8_t* p) {
+    return _mm_unpacklo_epi8(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p)), zero);
+  };
+  const __m128i dx = _mm_sub_epi16(load8(mid + x + 1), load8(mid + x - 1));
+  const __m128i dy = _mm_sub_epi16(load8(down + x), load8(up + x));
+  const __m128i dx_odd = _mm_and_si128(dx, odd_mask), dy_odd = _mm_and_si128(dy, odd_mask);
+  products8_store(dx, dx_odd, dx, cur + x + 1, ts, &carry[0]);
+  products8_store(dy, dy_odd, dy, cur + plane + x + 1, ts, &carry[1]);
+  products8_store(dx, dx_odd, dy, cur + 2 * plane + x + 1, ts, &carry[2]);
+}
+
+// Columns [x, w) after the SIMD steps: one more 8-pixel step ending at w, which rewrites the columns before x with
+// the same values (its carries are read back from the row written so far), or plain C++ in rows narrower than 8.
+inline void table_row_tail(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* down, int x, int w,
+                           std::uint32_t* cur, std::ptrdiff_t ts, std::ptrdiff_t plane, __m128i carry[3]) {
+  if (x == w) return;
+  if (w < 8) {
+    table_row_from(up, mid, down, x, w, cur, ts, plane, static_cast<std::uint32_t>(_mm_cvtsi128_si32(carry[0])),
+                   static_cast<std::uint32_t>(_mm_cvtsi128_si32(carry[1])),
+                   static_cast<std::uint32_t>(_mm_cvtsi128_si32(carry[2])));
+    return;
+  }
+  x = w - 8;
+  for (int k = 0; k < 3; ++k) {  // the row sum of columns [0, x): this row's entry minus the one above
+    const std::uint32_t* e = cur + k * plane + x;
+    carry[k] = _mm_set1_epi32(static_cast<int>(e[0] - e[-ts]));
+  }
+  table_step8(up, mid, down, x, cur, ts, plane, carry);
+}
+
+void table_row_sse2(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* down, int w,
+                    std::uint32_t* cur, std::ptrdiff_t ts, std::ptrdiff_t plane) {
+  __m128i carry[3] = {_mm_setzero_si128(), _mm_setzero_si128(), _mm_setzero_si128()};
+  int x = 0;
+  for (; x + 8 <= w; x += 8) table_step8(up, mid, down, x, cur, ts, plane, carry);
+  table_row_tail(up, mid, down, x, w, cur, ts, plane, carry);
+}
+
+// Window sums of 4 consecutive positions of one plane (int32 lanes).
+inline __m128i window4(const std::uint32_t* p, std::ptrdiff_t down, int ws) {
+  auto ld = [](const std::uint32_t* q) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(q)); };
+  return _mm_add_epi32(_mm_sub_epi32(_mm_sub_epi32(ld(p + down + ws), ld(p + down)), ld(p + ws)), ld(p));
+}
+
+// 2 int32 lanes (0-1, or 2-3 when high) as doubles, times scale.
+inline __m128d scaled_pd(__m128i v, int high, __m128d scale) {
+  return _mm_mul_pd(_mm_cvtepi32_pd(high ? _mm_shuffle_epi32(v, _MM_SHUFFLE(3, 2, 3, 2)) : v), scale);
+}
+
+double response_row_sse2(const ResponseRun& r, double* out) {
+  const __m128d scale = _mm_set1_pd(r.scale), k = _mm_set1_pd(r.k), half = _mm_set1_pd(0.5);
+  __m128d best = _mm_set1_pd(-std::numeric_limits<double>::infinity());
+  int i = 0;
+  for (; i + 4 <= r.n; i += 4) {
+    const std::uint32_t* p = r.xx + i;
+    const __m128i A = window4(p, r.down, r.ws);
+    const __m128i B = window4(p + r.plane, r.down, r.ws);
+    const __m128i C = window4(p + 2 * r.plane, r.down, r.ws);
+    for (int h = 0; h < 2; ++h) {
+      const __m128d a = scaled_pd(A, h, scale), b = scaled_pd(B, h, scale), c = scaled_pd(C, h, scale);
+      __m128d resp;
+      if (r.harris) {
+        const __m128d tr = _mm_add_pd(a, b);
+        resp = _mm_sub_pd(_mm_sub_pd(_mm_mul_pd(a, b), _mm_mul_pd(c, c)), _mm_mul_pd(_mm_mul_pd(k, tr), tr));
+      } else {
+        const __m128d hd = _mm_mul_pd(half, _mm_sub_pd(a, b));
+        resp = _mm_sub_pd(_mm_mul_pd(half, _mm_add_pd(a, b)),
+                          _mm_sqrt_pd(_mm_add_pd(_mm_mul_pd(hd, hd), _mm_mul_pd(c, c))));
+      }
+      _mm_storeu_pd(out + i + 2 * h, resp);
+      best = _mm_max_pd(best, resp);
+    }
+  }
+  double lanes[2];
+  _mm_storeu_pd(lanes, best);
+  return response_row_from(r, i, std::max(lanes[0], lanes[1]), out);
+}
+
+std::uint32_t trace_row_sse2(const ResponseRun& r) {
+  // Unsigned maximum through a signed compare of the values offset by 2^31 (SSE2 has no pmaxud).
+  const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));
+  __m128i best = bias;  // 0, offset
+  int i = 0;
+  for (; i + 4 <= r.n; i += 4) {
+    const std::uint32_t* p = r.xx + i;
+    const __m128i t = _mm_xor_si128(_mm_add_epi32(window4(p, r.down, r.ws), window4(p + r.plane, r.down, r.ws)), bias);
+    const __m128i greater = _mm_cmpgt_epi32(t, best);
+    best = _mm_or_si128(_mm_and_si128(greater, t), _mm_andnot_si128(greater, best));
+  }
+  alignas(16) std::uint32_t lanes[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(lanes), _mm_xor_si128(best, bias));
+  return trace_row_from(r, i, std::max(std::max(lanes[0], lanes[1]), std::max(lanes[2], lanes[3])));
+}
+
+// AVX2 kernels: the same computations, 8 int32 or 4 double lanes.
+#define RTSLAM_AVX2 __attribute__((target("avx2")))
+
+RTSLAM_AVX2 inline __m256i prefix8_epu32(__m256i v) {
+  v = _mm256_add_epi32(v, _mm256_slli_si256(v, 4));
+  v = _mm256_add_epi32(v, _mm256_slli_si256(v, 8));
+  const __m256i t = _mm256_shuffle_epi32(v, _MM_SHUFFLE(3, 3, 3, 3));
+  return _mm256_add_epi32(v, _mm256_permute2x128_si256(t, t, 0x08));
+}
+
+// One plane, 16 pixels (int16 lanes), as products8_store.
+RTSLAM_AVX2 inline void products16_store(__m256i d, __m256i d_odd, __m256i e, std::uint32_t* cur, std::ptrdiff_t ts,
+                                         __m256i* carry) {
+  const __m256i odd = _mm256_add_epi32(prefix8_epu32(_mm256_madd_epi16(d, e)), *carry);
+  const __m256i even = _mm256_sub_epi32(odd, _mm256_madd_epi16(d_odd, e));
+  *carry = _mm256_permutevar8x32_epi32(odd, _mm256_set1_epi32(7));
+  const __m256i lo = _mm256_unpacklo_epi32(even, odd);  // pixels 0-3 | 8-11
+  const __m256i hi = _mm256_unpackhi_epi32(even, odd);  // pixels 4-7 | 12-15
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(cur),
+                      _mm256_add_epi32(_mm256_permute2x128_si256(lo, hi, 0x20),
+                                       _mm256_loadu_si256(reinterpret_cast<const __m256i*>(cur - ts))));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(cur + 8),
+                      _mm256_add_epi32(_mm256_permute2x128_si256(lo, hi, 0x31),
+                                       _mm256_loadu_si256(reinterpret_cast<const __m256i*>(cur + 8 - ts))));
+}
+
+// 16 pixels as int16 lanes.
+RTSLAM_AVX2 inline __m256i load16_epi16(const std::uint8_t* p) {
+  return _mm256_cvtepu8_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+
+RTSLAM_AVX2 void table_row_avx2(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* down, int w,
+                                std::uint32_t* cur, std::ptrdiff_t ts, std::ptrdiff_t plane) {
+  const __m256i odd_mask = _mm256_set1_epi32(static_cast<int>(0xFFFF0000u));
+  __m256i carry[3] = {_mm256_setzero_si256(), _mm256_setzero_si256(), _mm256_setzero_si256()};
+  int x = 0;
+  for (; x + 16 <= w; x += 16) {
+    const __m256i dx = _mm256_sub_epi16(load16_epi16(mid + x + 1), load16_epi16(mid + x - 1));
+    const __m256i dy = _mm256_sub_epi16(load16_epi16(down + x), load16_epi16(up + x));
+    const __m256i dx_odd = _mm256_and_si256(dx, odd_mask), dy_odd = _mm256_and_si256(dy, odd_mask);
+    products16_store(dx, dx_odd, dx, cur + x + 1, ts, &carry[0]);
+    products16_store(dy, dy_odd, dy, cur + plane + x + 1, ts, &carry[1]);
+    products16_store(dx, dx_odd, dy, cur + 2 * plane + x + 1, ts, &carry[2]);
+  }
+  __m128i carry4[3] = {_mm256_castsi256_si128(carry[0]), _mm256_castsi256_si128(carry[1]),
+                       _mm256_castsi256_si128(carry[2])};  // the row sums, in every lane
+  _mm256_zeroupper();
+  if (x + 8 <= w) {
+    table_step8(up, mid, down, x, cur, ts, plane, carry4);
+    x += 8;
+  }
+  table_row_tail(up, mid, down, x, w, cur, ts, plane, carry4);
+}
+
+RTSLAM_AVX2 inline __m256i load8_epu32(const std::uint32_t* p) {
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
+}
+
+// Window sums of 8 consecutive positions of one plane (int32 lanes).
+RTSLAM_AVX2 inline __m256i window8(const std::uint32_t* p, std::ptrdiff_t down, int ws) {
+  return _mm256_add_epi32(
+      _mm256_sub_epi32(_mm256_sub_epi32(load8_epu32(p + down + ws), load8_epu32(p + down)), load8_epu32(p + ws)),
+      load8_epu32(p));
+}
+
+// 4 int32 lanes (0-3, or 4-7 when high) as doubles, times scale.
+RTSLAM_AVX2 inline __m256d scaled_pd(__m256i v, int high, __m256d scale) {
+  return _mm256_mul_pd(_mm256_cvtepi32_pd(high ? _mm256_extracti128_si256(v, 1) : _mm256_castsi256_si128(v)), scale);
+}
+
+RTSLAM_AVX2 double response_row_avx2(const ResponseRun& r, double* out) {
+  const __m256d scale = _mm256_set1_pd(r.scale), k = _mm256_set1_pd(r.k), half = _mm256_set1_pd(0.5);
+  __m256d best = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+  int i = 0;
+  for (; i + 8 <= r.n; i += 8) {
+    const std::uint32_t* p = r.xx + i;
+    const __m256i A = window8(p, r.down, r.ws);
+    const __m256i B = window8(p + r.plane, r.down, r.ws);
+    const __m256i C = window8(p + 2 * r.plane, r.down, r.ws);
+    for (int h = 0; h < 2; ++h) {
+      const __m256d a = scaled_pd(A, h, scale), b = scaled_pd(B, h, scale), c = scaled_pd(C, h, scale);
+      __m256d resp;
+      if (r.harris) {
+        const __m256d tr = _mm256_add_pd(a, b);
+        resp = _mm256_sub_pd(_mm256_sub_pd(_mm256_mul_pd(a, b), _mm256_mul_pd(c, c)),
+                             _mm256_mul_pd(_mm256_mul_pd(k, tr), tr));
+      } else {
+        const __m256d hd = _mm256_mul_pd(half, _mm256_sub_pd(a, b));
+        resp = _mm256_sub_pd(_mm256_mul_pd(half, _mm256_add_pd(a, b)),
+                             _mm256_sqrt_pd(_mm256_add_pd(_mm256_mul_pd(hd, hd), _mm256_mul_pd(c, c))));
+      }
+      _mm256_storeu_pd(out + i + 4 * h, resp);
+      best = _mm256_max_pd(best, resp);
+    }
+  }
+  double lanes[4];
+  _mm256_storeu_pd(lanes, best);
+  _mm256_zeroupper();
+  return response_row_from(r, i, std::max(std::max(lanes[0], lanes[1]), std::max(lanes[2], lanes[3])), out);
+}
+
+RTSLAM_AVX2 std::uint32_t trace_row_avx2(const ResponseRun& r) {
+  __m256i best = _mm256_setzero_si256();
+  int i = 0;
+  for (; i + 8 <= r.n; i += 8) {
+    const std::uint32_t* p = r.xx + i;
+    best = _mm256_max_epu32(best, _mm256_add_epi32(window8(p, r.down, r.ws), window8(p + r.plane, r.down, r.ws)));
+  }
+  alignas(32) std::uint32_t lanes[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), best);
+  _mm256_zeroupper();  // before plain SSE code (see simd.hpp)
+  return trace_row_from(r, i, *std::max_element(lanes, lanes + 8));
+}
+
+#undef RTSLAM_AVX2
+#endif  // __x86_64__
 
 // Förstner-style refinement: the point q closest, in the least-squares sense, to the lines through every pixel x_i
 // of a (2r + 1)² window orthogonal to its gradient g_i: q = (Σ g gᵀ)⁻¹ Σ g gᵀ x_i, with the [-1 0 1] gradients.
@@ -195,77 +496,67 @@ std::optional<Corner> HarrisDetector::best_corner(ImageView image, const Roi& ro
   // Integral images of Dx², Dy², DxDy over G (three planar tables). They are accumulated in uint32 modulo 2^32
   // (unsigned wrap-around is well defined): a window sum, at most window_size² * 65025 in magnitude (< 2^31 for
   // windows up to 181x181), is recovered exactly by the same modular four-corner difference, whatever the ROI size.
-  const int ts = gw + 1;  // table stride
-  const std::size_t n_plane = static_cast<std::size_t>(ts) * static_cast<std::size_t>(gh + 1);
-  if (table_.size() < 3 * n_plane + 3 * static_cast<std::size_t>(gw)) table_.resize(3 * n_plane + 3 * static_cast<std::size_t>(gw));
+  const std::ptrdiff_t ts = gw + 1;  // table stride
+  const std::ptrdiff_t n_plane = ts * (gh + 1);
+  if (table_.size() < static_cast<std::size_t>(3 * n_plane)) table_.resize(static_cast<std::size_t>(3 * n_plane));
   std::uint32_t* Txx = table_.data();
-  std::uint32_t* Tyy = Txx + n_plane;
-  std::uint32_t* Txy = Tyy + n_plane;
-  std::uint32_t* pxx = Txy + n_plane;  // products of the current row
-  std::uint32_t* pyy = pxx + gw;
-  std::uint32_t* pxy = pyy + gw;
   std::fill_n(Txx, ts, 0u);
-  std::fill_n(Tyy, ts, 0u);
-  std::fill_n(Txy, ts, 0u);
+  std::fill_n(Txx + n_plane, ts, 0u);
+  std::fill_n(Txx + 2 * n_plane, ts, 0u);
+  TableRow table_row = table_row_scalar;
+  TraceRow trace_row = trace_row_scalar;
+  ResponseRow response_row = response_row_scalar;
+#if defined(__x86_64__)
+  const SimdLevel level = simd_level();
+  if (level == SimdLevel::avx2) {
+    table_row = table_row_avx2;
+    trace_row = trace_row_avx2;
+    response_row = response_row_avx2;
+  } else if (level == SimdLevel::sse2) {
+    table_row = table_row_sse2;
+    trace_row = trace_row_sse2;
+    response_row = response_row_sse2;
+  }
+#endif
   for (int y = 0; y < gh; ++y) {
-    const std::uint8_t* up = image.row(gv0 + y - 1) + gu0;
-    const std::uint8_t* mid = image.row(gv0 + y) + gu0;
-    const std::uint8_t* down = image.row(gv0 + y + 1) + gu0;
-    gradient_products(up, mid, down, gw, pxx, pyy, pxy);
-    const std::size_t prev = static_cast<std::size_t>(y) * ts, cur = prev + ts;
-    prefix_row(pxx, gw, Txx + prev, Txx + cur);
-    prefix_row(pyy, gw, Tyy + prev, Tyy + cur);
-    prefix_row(pxy, gw, Txy + prev, Txy + cur);
+    std::uint32_t* cur = Txx + (y + 1) * ts;
+    cur[0] = cur[n_plane] = cur[2 * n_plane] = 0;
+    table_row(image.row(gv0 + y - 1) + gu0, image.row(gv0 + y) + gu0, image.row(gv0 + y + 1) + gu0, gw, cur, ts,
+              n_plane);
   }
 
-  // Responses over E (branch-free, vectorizable), then the best candidate of C in raster order (first maximum);
-  // the edge test runs only when a candidate would become the best.
-  const std::size_t n_resp = static_cast<std::size_t>(ew) * static_cast<std::size_t>(eh);
-  if (resp_.size() < n_resp) resp_.resize(n_resp);
+  // Responses of C row by row (vectorized), then the best candidate in raster order (first maximum) among those
+  // reaching the threshold and passing the edge test. A row is skipped when a bound shows that none of its responses
+  // can be a new best, it is scanned only if its largest response could be, and the edge test runs only for a
+  // candidate that would become the best.
+  // Bound: with tr = a + b (a, b >= 0), ab <= tr² / 4, so Harris ab - c² - k tr² <= (1/4 - k) tr², and
+  // λmin <= tr / 2. The computed responses exceed these by less than 1e-15 tr² (or tr), hence the 1e-12 margins.
   const int ws = options_.window_size;
   const double scale = 1.0 / (4.0 * ws * ws);  // D = 2 g, and the mean over the window's n = ws² pixels
-  const double k = options_.k;
   const bool harris = options_.response == HarrisResponse::harris;
-  // Window of centre (u, v): G columns [u - hw - gu0, + ws), rows [v - hw - gv0, + ws).
+  // Table entry of the top-left corner of the window centred on (u, v): G column u - hw - gu0, row v - hw - gv0.
+  auto corner = [&](int u, int v) { return Txx + (v - hw - gv0) * ts + (u - hw - gu0); };
+  const std::ptrdiff_t down = ws * ts;
   auto window_sums = [&](int u, int v, double* a, double* b, double* c) {
-    const std::size_t i00 = static_cast<std::size_t>(v - hw - gv0) * ts + static_cast<std::size_t>(u - hw - gu0);
-    const std::size_t i01 = i00 + ws, i10 = i00 + static_cast<std::size_t>(ws) * ts, i11 = i10 + ws;
-    *a = static_cast<std::int32_t>(Txx[i11] - Txx[i10] - Txx[i01] + Txx[i00]) * scale;
-    *b = static_cast<std::int32_t>(Tyy[i11] - Tyy[i10] - Tyy[i01] + Tyy[i00]) * scale;
-    *c = static_cast<std::int32_t>(Txy[i11] - Txy[i10] - Txy[i01] + Txy[i00]) * scale;
+    const std::uint32_t* p = corner(u, v);
+    *a = window_value(p, down, ws, scale);
+    *b = window_value(p + n_plane, down, ws, scale);
+    *c = window_value(p + 2 * n_plane, down, ws, scale);
   };
-  for (int ey = 0; ey < eh; ++ey) {
-    const int v = ev0 + ey;
-    const std::size_t r0 = static_cast<std::size_t>(v - hw - gv0) * ts + static_cast<std::size_t>(eu0 - hw - gu0);
-    const std::size_t r1 = r0 + static_cast<std::size_t>(ws) * ts;
-    const std::uint32_t *xx0 = Txx + r0, *xx1 = Txx + r1, *yy0 = Tyy + r0, *yy1 = Tyy + r1;
-    const std::uint32_t *xy0 = Txy + r0, *xy1 = Txy + r1;
-    double* out = resp_.data() + static_cast<std::size_t>(ey) * ew;
-    if (harris) {
-      for (int ex = 0; ex < ew; ++ex) {
-        const double a = static_cast<std::int32_t>(xx1[ex + ws] - xx1[ex] - xx0[ex + ws] + xx0[ex]) * scale;
-        const double b = static_cast<std::int32_t>(yy1[ex + ws] - yy1[ex] - yy0[ex + ws] + yy0[ex]) * scale;
-        const double c = static_cast<std::int32_t>(xy1[ex + ws] - xy1[ex] - xy0[ex + ws] + xy0[ex]) * scale;
-        const double tr = a + b;
-        out[ex] = a * b - c * c - k * tr * tr;
-      }
-    } else {
-      for (int ex = 0; ex < ew; ++ex) {
-        const double a = static_cast<std::int32_t>(xx1[ex + ws] - xx1[ex] - xx0[ex + ws] + xx0[ex]) * scale;
-        const double b = static_cast<std::int32_t>(yy1[ex + ws] - yy1[ex] - yy0[ex + ws] + yy0[ex]) * scale;
-        const double c = static_cast<std::int32_t>(xy1[ex + ws] - xy1[ex] - xy0[ex + ws] + xy0[ex]) * scale;
-        const double half_diff = 0.5 * (a - b);
-        out[ex] = 0.5 * (a + b) - std::sqrt(half_diff * half_diff + c * c);
-      }
-    }
-  }
+  const int cw = cu1 - cu0 + 1;
+  if (resp_.size() < static_cast<std::size_t>(cw)) resp_.resize(static_cast<std::size_t>(cw));
   const double threshold = options_.threshold();
   double best = -std::numeric_limits<double>::infinity();
   int best_u = -1, best_v = -1;
   for (int v = cv0; v <= cv1; ++v) {
-    const double* row = resp_.data() + static_cast<std::size_t>(v - ev0) * ew - eu0;
+    const ResponseRun run{corner(cu0, v), n_plane, down, ws, cw, scale, options_.k, harris};
+    const double tr_max = trace_row(run) * scale * (1.0 + 1e-12);
+    const double bound = harris ? (0.25 - options_.k + 1e-12) * tr_max * tr_max : 0.5 * tr_max;
+    if (bound < threshold || bound <= best) continue;
+    const double row_max = response_row(run, resp_.data());
+    if (!(row_max > best && row_max >= threshold)) continue;
     for (int u = cu0; u <= cu1; ++u) {
-      const double r = row[u];
+      const double r = resp_[static_cast<std::size_t>(u - cu0)];
       if (r > best && r >= threshold) {
         double a, b, c;
         window_sums(u, v, &a, &b, &c);
@@ -283,7 +574,12 @@ std::optional<Corner> HarrisDetector::best_corner(ImageView image, const Roi& ro
   // then, once, the pixel nearest the fitted vertex), vertex accepted within 1.5 px of p. With the box window the
   // response of a corner is flat-topped over ~2 px, so a 3x3 fit would follow the integer maximum; the 5x5 fit sees
   // the whole hump. Fallbacks: the 3x3 fit, then separable parabolas (clamped to +-0.5 px).
-  auto R = [&](int u, int v) { return resp_[static_cast<std::size_t>(v - ev0) * ew + (u - eu0)]; };
+  // Responses of E, computed from the tables on demand (the same expressions as the row kernels).
+  auto R = [&](int u, int v) {
+    double a, b, c;
+    window_sums(u, v, &a, &b, &c);
+    return response_of(a, b, c, options_.k, harris);
+  };
   auto has = [&](int u, int v, int r) { return u - r >= eu0 && u + r <= eu1 && v - r >= ev0 && v + r <= ev1; };
   // Vertex offset of f = a0 + a1 i + a2 j + a3 i² + a4 ij + a5 j² fitted on i, j in [-r, r] (r = 1 or 2). On the
   // symmetric grid the normal equations decouple: a1 = Σ i f / Σ i², a4 = Σ ij f / Σ i²j², a3 = Σ (i² - m) f /

@@ -74,8 +74,8 @@ class HarrisDetector {
 
  private:
   HarrisOptions options_;
-  std::vector<std::uint32_t> table_;  // integral images of Dx², Dy², DxDy (modulo 2^32, see .cpp) + row buffers
-  std::vector<double> resp_;          // responses over the candidate area grown by one pixel
+  std::vector<std::uint32_t> table_;  // integral images of Dx², Dy², DxDy (modulo 2^32, see .cpp)
+  std::vector<double> resp_;          // responses of one row of candidates
 };
 
 }  // namespace rtslam::vision

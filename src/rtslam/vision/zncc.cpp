@@ -7,7 +7,9 @@
 
 #include <Eigen/LU>
 
-#if defined(__SSE2__)
+#include "rtslam/vision/simd.hpp"
+
+#if defined(__x86_64__)
 #include <emmintrin.h>
 #endif
 
@@ -170,110 +172,283 @@ namespace {
 
 constexpr double kBoundMargin = 1e-12;  // covers the rounding of the bound and of the score (~1e-15)
 
-// A square template of either resolution with its precomputed sums; rows are int16, zero-padded to `stride`.
-struct TemplateView {
-  const std::int16_t* data;
-  int size;
-  int stride;  // a multiple of 16 (full resolution) or 8 (half resolution)
-  std::int64_t sum;
-  std::int64_t energy;  // n Σa² - (Σa)²
-  const Patch* patch;
-  bool half;
-  std::int64_t suffix_sum(int r) const { return half ? patch->half_suffix_sum(r) : patch->suffix_sum(r); }
-  std::int64_t suffix_sq(int r) const { return half ? patch->half_suffix_sq(r) : patch->suffix_sq(r); }
-};
+// Kernels, in plain C++ and SSE2 (the x86-64 baseline), chosen by simd_level(). Both give the same exact integer sums.
+//
+// Exactness of the int32/uint32 accumulations:
+//  - full resolution: Σ ab <= 31² * 255² < 2^31;
+//  - half resolution: reduced pixels and template entries are [1 2 1]² sums, 0 .. 4080, with at most 15 x 15 of
+//    them (patch <= 31): Σ ab and Σ b² over a window are < 225 * 4080² < 2^32, accumulated as uint32 (all terms are
+//    non-negative); the half-resolution integral tables are uint32 modulo 2^32, exact for any such window.
 
-// Dot products of 16 (8-bit image) or 8 (int16 half-resolution image) entries. Products fit int32: 255 * 255 at full
-// resolution, 4080 * 4080 at half resolution; a row sums at most 32 such terms (patch <= 31). SSE2 (every x86-64)
-// when available, plain C++ otherwise.
-#if defined(__SSE2__)
-inline std::int32_t hsum_epi32(__m128i v) {
+// Horizontal [1 2 1] reduction at stride 2: dst[i] = src[2i] + 2 src[2i + 1] + src[2i + 2] for i in [0, n).
+void reduce_row(const std::uint8_t* src, int n, std::uint16_t* dst, bool simd) {
+  int i = 0;
+#if defined(__x86_64__)
+  if (simd) {
+    const __m128i low_bytes = _mm_set1_epi16(0x00FF);
+    for (; i + 9 <= n; i += 8) {  // reads src[2i, 2i + 18), inside [0, 2n]
+      const __m128i v0 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + 2 * i));
+      const __m128i v1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + 2 * i + 2));
+      const __m128i odd = _mm_srli_epi16(v0, 8);
+      const __m128i sum = _mm_add_epi16(_mm_add_epi16(_mm_and_si128(v0, low_bytes), _mm_and_si128(v1, low_bytes)),
+                                        _mm_add_epi16(odd, odd));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + i), sum);
+    }
+  }
+#else
+  (void)simd;
+#endif
+  for (; i < n; ++i) dst[i] = static_cast<std::uint16_t>(src[2 * i] + 2 * src[2 * i + 1] + src[2 * i + 2]);
+}
+
+// One row of the half-resolution integral tables, modulo 2^32: S[i + 1] = Sp[i + 1] + Σ_{i'<=i} v[i'], Q likewise
+// with squares, for i in [0, n) (the caller sets S[0] and Q[0]).
+void half_table_row(const std::int16_t* v, int n, const std::uint32_t* Sp, std::uint32_t* S, const std::uint32_t* Qp,
+                    std::uint32_t* Q, bool simd) {
+  int i = 0;
+  std::uint32_t rs = 0, rq = 0;
+#if defined(__x86_64__)
+  if (simd) {
+    const __m128i zero = _mm_setzero_si128();
+    __m128i carry_s = zero, carry_q = zero;
+    auto prefix4 = [](__m128i x) {
+      x = _mm_add_epi32(x, _mm_slli_si128(x, 4));
+      return _mm_add_epi32(x, _mm_slli_si128(x, 8));
+    };
+    auto last = [](__m128i x) { return _mm_shuffle_epi32(x, _MM_SHUFFLE(3, 3, 3, 3)); };
+    auto store = [](std::uint32_t* d, const std::uint32_t* p, __m128i x) {
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(d),
+                       _mm_add_epi32(x, _mm_loadu_si128(reinterpret_cast<const __m128i*>(p))));
+    };
+    for (; i + 8 <= n; i += 8) {
+      const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(v + i));
+      // Sums: 16-bit prefixes first (at most 8 * 4080).
+      __m128i c = _mm_add_epi16(x, _mm_slli_si128(x, 2));
+      c = _mm_add_epi16(c, _mm_slli_si128(c, 4));
+      c = _mm_add_epi16(c, _mm_slli_si128(c, 8));
+      const __m128i s0 = _mm_add_epi32(_mm_unpacklo_epi16(c, zero), carry_s);
+      const __m128i s1 = _mm_add_epi32(_mm_unpackhi_epi16(c, zero), carry_s);
+      carry_s = last(s1);
+      store(S + i + 1, Sp + i + 1, s0);
+      store(S + i + 5, Sp + i + 5, s1);
+      // Squares: (v, 0) int16 pairs through pmaddwd.
+      const __m128i x0 = _mm_unpacklo_epi16(x, zero), x1 = _mm_unpackhi_epi16(x, zero);
+      const __m128i q0 = _mm_add_epi32(prefix4(_mm_madd_epi16(x0, x0)), carry_q);
+      const __m128i q1 = _mm_add_epi32(prefix4(_mm_madd_epi16(x1, x1)), last(q0));
+      carry_q = last(q1);
+      store(Q + i + 1, Qp + i + 1, q0);
+      store(Q + i + 5, Qp + i + 5, q1);
+    }
+    rs = static_cast<std::uint32_t>(_mm_cvtsi128_si32(carry_s));
+    rq = static_cast<std::uint32_t>(_mm_cvtsi128_si32(carry_q));
+  }
+#else
+  (void)simd;
+#endif
+  for (; i < n; ++i) {
+    const auto x = static_cast<std::uint32_t>(v[i]);
+    rs += x;
+    rq += x * x;
+    S[i + 1] = Sp[i + 1] + rs;
+    Q[i + 1] = Qp[i + 1] + rq;
+  }
+}
+
+#if defined(__x86_64__)
+inline std::uint32_t hsum_epu32(__m128i v) {
   v = _mm_add_epi32(v, _mm_shuffle_epi32(v, _MM_SHUFFLE(1, 0, 3, 2)));
   v = _mm_add_epi32(v, _mm_shuffle_epi32(v, _MM_SHUFFLE(2, 3, 0, 1)));
-  return _mm_cvtsi128_si32(v);
-}
-inline std::int32_t dot16(const std::int16_t* a, const std::uint8_t* b) {
-  const __m128i vb = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b));
-  const __m128i zero = _mm_setzero_si128();
-  const __m128i lo = _mm_madd_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a)), _mm_unpacklo_epi8(vb, zero));
-  const __m128i hi =
-      _mm_madd_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + 8)), _mm_unpackhi_epi8(vb, zero));
-  return hsum_epi32(_mm_add_epi32(lo, hi));
-}
-inline std::int32_t dot8(const std::int16_t* a, const std::int16_t* b) {
-  return hsum_epi32(_mm_madd_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a)),
-                                   _mm_loadu_si128(reinterpret_cast<const __m128i*>(b))));
-}
-#else
-inline std::int32_t dot16(const std::int16_t* a, const std::uint8_t* b) {
-  std::int32_t acc = 0;
-  for (int i = 0; i < 16; ++i) acc += static_cast<std::int32_t>(a[i]) * static_cast<std::int32_t>(b[i]);
-  return acc;
-}
-inline std::int32_t dot8(const std::int16_t* a, const std::int16_t* b) {
-  std::int32_t acc = 0;
-  for (int i = 0; i < 8; ++i) acc += static_cast<std::int32_t>(a[i]) * static_cast<std::int32_t>(b[i]);
-  return acc;
+  return static_cast<std::uint32_t>(_mm_cvtsi128_si32(v));
 }
 #endif
 
-// Dot of a template row with an image row: over the padded length when `wide` (reading past the window is then
-// allowed: the extra template entries are zero), else over the exact size.
-inline std::int32_t dot_row(const TemplateView& t, const std::int16_t* a, const std::uint8_t* b, bool wide) {
-  std::int32_t acc = 0;
-  if (wide) {
-    for (int k = 0; k < t.stride; k += 16) acc += dot16(a + k, b + k);
+// Σ ab of the half-resolution template (rows int16, `stride` apart, zero-padded) at n consecutive positions of
+// reduced image rows (b_stride apart): out[i] for the window whose top-left entry is b[i]. Reading `stride` entries
+// per row must stay inside the buffer.
+void half_dots(const std::int16_t* a, int rows, int stride, const std::int16_t* b, std::ptrdiff_t b_stride, int n,
+               std::uint32_t* out, bool simd) {
+  int i = 0;
+#if defined(__x86_64__)
+  if (simd && stride == 8) {
+    // Four positions per step; their four lane sums are reduced together by a 4 x 4 transpose.
+    auto ld = [](const std::int16_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); };
+    for (; i + 4 <= n; i += 4) {
+      __m128i acc[4] = {_mm_setzero_si128(), _mm_setzero_si128(), _mm_setzero_si128(), _mm_setzero_si128()};
+      for (int r = 0; r < rows; ++r) {
+        const __m128i ar = ld(a + r * 8);
+        const std::int16_t* br = b + r * b_stride + i;
+        for (int k = 0; k < 4; ++k) acc[k] = _mm_add_epi32(acc[k], _mm_madd_epi16(ar, ld(br + k)));
+      }
+      const __m128i t01 = _mm_add_epi32(_mm_unpacklo_epi32(acc[0], acc[1]), _mm_unpackhi_epi32(acc[0], acc[1]));
+      const __m128i t23 = _mm_add_epi32(_mm_unpacklo_epi32(acc[2], acc[3]), _mm_unpackhi_epi32(acc[2], acc[3]));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i),
+                       _mm_add_epi32(_mm_unpacklo_epi64(t01, t23), _mm_unpackhi_epi64(t01, t23)));
+    }
+  }
+  if (simd) {
+    for (; i < n; ++i) {
+      __m128i acc = _mm_setzero_si128();
+      for (int r = 0; r < rows; ++r)
+        for (int k = 0; k < stride; k += 8)
+          acc = _mm_add_epi32(
+              acc, _mm_madd_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a + r * stride + k)),
+                                  _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + r * b_stride + i + k))));
+      out[i] = hsum_epu32(acc);
+    }
+    return;
+  }
+#else
+  (void)simd;
+#endif
+  for (; i < n; ++i) {
+    std::uint32_t acc = 0;
+    for (int r = 0; r < rows; ++r)
+      for (int k = 0; k < stride; ++k) acc += static_cast<std::uint32_t>(a[r * stride + k] * b[r * b_stride + i + k]);
+    out[i] = acc;
+  }
+}
+
+// Full-resolution kernels. A window is s x s pixels from b (rows b_stride apart); template rows are int16, zero-padded
+// to a multiple of 16 entries. A kernel policy provides:
+//  - rows(b, b_stride, s, step, sum, sq): Σb and Σb² of the window rows [g step, min(s, (g + 1) step)) for every
+//    group g < ceil(s / step) (row sums of squares fit int32: 31 * 65025); returns the number of groups;
+//  - dot(a, stride, s, b, b_stride, r0, r1): Σ ab over the rows [r0, r1).
+struct ScalarKernel {
+  static int rows(const std::uint8_t* b, std::ptrdiff_t b_stride, int s, int step, std::int64_t* sum,
+                  std::int64_t* sq) {
+    int g = 0;
+    for (; g * step < s; ++g) {
+      std::int64_t gs = 0, gq = 0;
+      for (int r = g * step; r < std::min(s, (g + 1) * step); ++r)
+        for (int c = 0; c < s; ++c) {
+          const std::int64_t p = b[r * b_stride + c];
+          gs += p;
+          gq += p * p;
+        }
+      sum[g] = gs;
+      sq[g] = gq;
+    }
+    return g;
+  }
+  static std::int64_t dot(const std::int16_t* a, int stride, int s, const std::uint8_t* b, std::ptrdiff_t b_stride,
+                          int r0, int r1) {
+    std::int64_t acc = 0;
+    for (int r = r0; r < r1; ++r)
+      for (int c = 0; c < s; ++c) acc += static_cast<std::int32_t>(a[r * stride + c]) * b[r * b_stride + c];
     return acc;
   }
-  for (int i = 0; i < t.size; ++i) acc += static_cast<std::int32_t>(a[i]) * static_cast<std::int32_t>(b[i]);
-  return acc;
-}
-inline std::int32_t dot_row(const TemplateView& t, const std::int16_t* a, const std::int16_t* b, bool /*wide*/) {
-  std::int32_t acc = 0;
-  for (int k = 0; k < t.stride; k += 8) acc += dot8(a + k, b + k);
-  return acc;
-}
-
-struct WindowSums {
-  std::int64_t sum;
-  std::int64_t sq;
 };
 
-// ZNCC of template t against the window whose top-left pixel is b (row stride b_stride). window(r0, nr) returns the
-// sums of the window rows [r0, r0 + nr). With prune, abandons (returns false) when the bound on the score falls
-// strictly below floor (minus the rounding margin).
-template <class PB, class Window>
-bool zncc_window(const TemplateView& t, const PB* b, std::ptrdiff_t b_stride, bool wide, const Window& window,
-                 bool prune, int step, double floor, double* score) {
-  const int s = t.size;
+#if defined(__x86_64__)
+// SSE2, kBlocks 16-byte blocks per row (patches up to 16 or 32 pixels wide); reads the whole padded width of each
+// row, so the caller checks that it stays inside the image.
+template <int kBlocks>
+struct Sse2Kernel {
+  static int rows(const std::uint8_t* b, std::ptrdiff_t b_stride, int s, int step, std::int64_t* sum,
+                  std::int64_t* sq) {
+    // Byte masks of the s used columns: 16 - c bytes into {0xFF x 16, 0 x 16} starts with c 0xFF bytes.
+    alignas(16) static constexpr std::uint8_t kMask[32] = {0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+                                                           0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF};
+    __m128i mask[kBlocks];
+    for (int k = 0; k < kBlocks; ++k)
+      mask[k] = _mm_loadu_si128(reinterpret_cast<const __m128i*>(kMask + 16 - std::clamp(s - 16 * k, 0, 16)));
+    const __m128i zero = _mm_setzero_si128();
+    int g = 0;
+    for (int r = 0; r < s; ++g) {
+      __m128i acc_s = zero, acc_q = zero;
+      for (const int end = std::min(s, r + step); r < end; ++r) {
+        for (int k = 0; k < kBlocks; ++k) {
+          const __m128i v =
+              _mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(b + r * b_stride + 16 * k)), mask[k]);
+          acc_s = _mm_add_epi64(acc_s, _mm_sad_epu8(v, zero));
+          const __m128i lo = _mm_unpacklo_epi8(v, zero), hi = _mm_unpackhi_epi8(v, zero);
+          acc_q = _mm_add_epi32(acc_q, _mm_add_epi32(_mm_madd_epi16(lo, lo), _mm_madd_epi16(hi, hi)));
+        }
+      }
+      sum[g] = _mm_cvtsi128_si32(_mm_add_epi32(acc_s, _mm_unpackhi_epi64(acc_s, acc_s)));
+      sq[g] = static_cast<std::int32_t>(hsum_epu32(acc_q));
+    }
+    return g;
+  }
+  static std::int64_t dot(const std::int16_t* a, int stride, int /*s*/, const std::uint8_t* b, std::ptrdiff_t b_stride,
+                          int r0, int r1) {
+    const __m128i zero = _mm_setzero_si128();
+    __m128i acc = zero;
+    for (int r = r0; r < r1; ++r) {
+      for (int k = 0; k < kBlocks; ++k) {
+        const std::int16_t* ar = a + r * stride + 16 * k;
+        const __m128i vb = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + r * b_stride + 16 * k));
+        acc = _mm_add_epi32(
+            acc, _mm_madd_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ar)), _mm_unpacklo_epi8(vb, zero)));
+        acc = _mm_add_epi32(acc, _mm_madd_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ar + 8)),
+                                                _mm_unpackhi_epi8(vb, zero)));
+      }
+    }
+    return hsum_epu32(acc);
+  }
+};
+#endif
+
+// A full-resolution window: its top-left pixel b (rows b_stride apart), at (x0, y0) in the image. With a table (the
+// integral images of the search region), its sums come from the table, else from its rows.
+struct Window {
+  const std::uint8_t* b;
+  std::ptrdiff_t b_stride;
+  int x0, y0;
+  const IntegralImages* table;
+};
+
+// ZNCC of the full-resolution template against a window. With prune, abandons (returns false) when the bound on the
+// score falls strictly below floor (minus the rounding margin).
+template <class Kernel>
+bool zncc_window(const Patch& t, const Window& w, bool prune, int step, double floor, double* score) {
+  const int s = t.size();
+  if (!prune) step = s;
+  std::int64_t rest_sum[32], rest_sq[32];  // sums of the window rows [g step, s) (patch <= 31)
+  rest_sum[0] = rest_sq[0] = 0;            // always set below; spares a false -Wmaybe-uninitialized
+  // From the table, each group's sums are looked up when its bound is checked.
+  auto table_rest = [&](int g) {
+    rest_sum[g] = w.table->sum(w.x0, w.y0 + g * step, s, s - g * step);
+    rest_sq[g] = static_cast<std::int64_t>(w.table->sum_sq(w.x0, w.y0 + g * step, s, s - g * step));
+  };
+  if (w.table != nullptr) {
+    table_rest(0);
+  } else {
+    for (int g = Kernel::rows(w.b, w.b_stride, s, step, rest_sum, rest_sq) - 2; g >= 0; --g) {
+      rest_sum[g] += rest_sum[g + 1];
+      rest_sq[g] += rest_sq[g + 1];
+    }
+  }
+  const std::uint8_t* b = w.b;
+  const std::ptrdiff_t b_stride = w.b_stride;
   const std::int64_t n = static_cast<std::int64_t>(s) * s;
-  const WindowSums all = window(0, s);
-  const std::int64_t energy_b = n * all.sq - all.sum * all.sum;
+  const std::int64_t energy_b = n * rest_sq[0] - rest_sum[0] * rest_sum[0];
   if (energy_b <= 0) {
     *score = 0.0;
     return true;
   }
-  const double inv_den = 1.0 / std::sqrt(static_cast<double>(t.energy) * static_cast<double>(energy_b));
-  const double sa_sb = static_cast<double>(t.sum * all.sum);
+  const double inv_den = 1.0 / std::sqrt(static_cast<double>(t.centred_energy()) * static_cast<double>(energy_b));
+  const double sa_sb = static_cast<double>(t.sum() * rest_sum[0]);
   const double dn = static_cast<double>(n);
   std::int64_t sab = 0;
-  for (int r = 0; r < s; ++r) {
-    sab += dot_row(t, t.data + static_cast<std::ptrdiff_t>(r) * t.stride, b + r * b_stride, wide);
-    const int done = r + 1;
-    if (prune && done % step == 0 && done < s) {
+  for (int g = 1, done = 0; done < s; ++g) {
+    const int next = std::min(s, done + step);
+    sab += Kernel::dot(t.padded_data(), t.padded_stride(), s, b, b_stride, done, next);
+    done = next;
+    if (done < s) {
       // Bound of the remaining rows [done, s), m pixels: Cauchy-Schwarz on the centred rows plus the mean term.
       const std::int64_t m = static_cast<std::int64_t>(s - done) * s;
       const std::int64_t sa_r = t.suffix_sum(done);
       const std::int64_t saa_r = t.suffix_sq(done);
-      const WindowSums rest_b = window(done, s - done);
+      if (w.table != nullptr) table_rest(g);
       const double ea_r = static_cast<double>(m * saa_r - sa_r * sa_r);
-      const double eb_r = static_cast<double>(m * rest_b.sq - rest_b.sum * rest_b.sum);
-      const double rest = (std::sqrt(ea_r * eb_r) + static_cast<double>(sa_r * rest_b.sum)) / static_cast<double>(m);
+      const double eb_r = static_cast<double>(m * rest_sq[g] - rest_sum[g] * rest_sum[g]);
+      const double rest = (std::sqrt(ea_r * eb_r) + static_cast<double>(sa_r * rest_sum[g])) / static_cast<double>(m);
       const double bound = (dn * (static_cast<double>(sab) + rest) - sa_sb) * inv_den;
       if (bound < floor - kBoundMargin) return false;
     }
   }
-  *score = static_cast<double>(n * sab - t.sum * all.sum) * inv_den;
+  *score = static_cast<double>(n * sab - t.sum() * rest_sum[0]) * inv_den;
   return true;
 }
 
@@ -288,13 +463,10 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
   RTSLAM_CHECK(patch.size() == options_.patch_size, "ZnccMatcher::match: patch size differs from options.patch_size");
   MatchResult res;
   if (patch.centred_energy() <= 0) return res;  // a uniform template cannot be matched
-  const int s = patch.size();
   const int h = patch.half();
   // Positions: the region's bounding box within the centres whose patch fits the image.
   const Roi box = region.bounding_box().intersect(Roi{h, h, image.width - 2 * h, image.height - 2 * h});
   if (box.empty()) return res;
-  // Integral images over the box grown by the patch half-size plus one (the sub-pixel fit may read neighbours).
-  integral_.compute(image, Roi{box.x - h - 1, box.y - h - 1, box.w + 2 * h + 2, box.h + 2 * h + 2}, true);
   const std::size_t n_pos = static_cast<std::size_t>(box.w) * static_cast<std::size_t>(box.h);
   if (scores_.size() < n_pos) {
     scores_.resize(n_pos);
@@ -308,17 +480,26 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
   const int step = options_.partial_step_rows;
   const double kNone = -std::numeric_limits<double>::infinity();
 
-  const TemplateView full{patch.padded_data(), s, patch.padded_stride(), patch.sum(), patch.centred_energy(), &patch,
-                          false};
+  const bool simd = simd_level() != SimdLevel::scalar;
+  // Window sums at full resolution: the exhaustive search evaluates every position, so integral images of the region
+  // (grown for the sub-pixel neighbours) cost less than summing each window's rows; the two-level climb evaluates a
+  // few dozen positions, which sum their own rows.
+  const IntegralImages* table = nullptr;
+  if (!options_.two_level) {
+    integral_.compute(image, Roi{box.x - h - 1, box.y - h - 1, box.w + 2 * h + 2, box.h + 2 * h + 2}, true);
+    table = &integral_;
+  }
   // Full-resolution score at (u, v) (with_pruning = false: always complete).
   auto full_score = [&](int u, int v, bool with_pruning, double floor, double* sc) {
     const int x0 = u - h, y0 = v - h;
-    auto window = [&](int r0, int nr) {
-      return WindowSums{static_cast<std::int64_t>(integral_.sum(x0, y0 + r0, s, nr)),
-                        static_cast<std::int64_t>(integral_.sum_sq(x0, y0 + r0, s, nr))};
-    };
-    const bool wide = x0 + full.stride <= image.width;  // the padded reads stay inside the image rows
-    return zncc_window(full, image.row(y0) + x0, image.stride, wide, window, with_pruning, step, floor, sc);
+    const Window w{image.row(y0) + x0, image.stride, x0, y0, table};
+#if defined(__x86_64__)
+    if (simd && x0 + patch.padded_stride() <= image.width) {  // the padded reads stay inside the image rows
+      return patch.padded_stride() == 16 ? zncc_window<Sse2Kernel<1>>(patch, w, with_pruning, step, floor, sc)
+                                         : zncc_window<Sse2Kernel<2>>(patch, w, with_pruning, step, floor, sc);
+    }
+#endif
+    return zncc_window<ScalarKernel>(patch, w, with_pruning, step, floor, sc);
   };
   // The score of a search position if it may reach `floor`, kNone if it is known to be below `floor`. Each position
   // remembers its exact score, or the floor it was abandoned against, so nothing is computed twice and pruning
@@ -365,12 +546,8 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
     const int ox = box.x - h, oy = box.y - h;
     const int n_rows = 2 * hh + 1;  // full-resolution rows oy .. oy + 2 hh
     half_rows_.resize(static_cast<std::size_t>(n_rows) * static_cast<std::size_t>(hw));
-    for (int r = 0; r < n_rows; ++r) {
-      const std::uint8_t* src = image.row(oy + r) + ox;
-      std::uint16_t* dst = half_rows_.data() + static_cast<std::size_t>(r) * hw;
-      for (int i = 0; i < hw; ++i)
-        dst[i] = static_cast<std::uint16_t>(src[2 * i] + 2 * src[2 * i + 1] + src[2 * i + 2]);
-    }
+    for (int r = 0; r < n_rows; ++r)
+      reduce_row(image.row(oy + r) + ox, hw, half_rows_.data() + static_cast<std::size_t>(r) * hw, simd);
     // Rows are contiguous and the buffer ends with padding, so padded template reads stay inside it.
     const std::size_t n_half = static_cast<std::size_t>(hw) * static_cast<std::size_t>(hh);
     if (half_.size() < n_half + 16) half_.resize(n_half + 16);
@@ -384,59 +561,52 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
     }
     const int ts = hw + 1;
     const std::size_t n_table = static_cast<std::size_t>(ts) * static_cast<std::size_t>(hh + 1);
-    half_sum_.resize(n_table);
-    half_sq_.resize(n_table);
-    std::fill_n(half_sum_.data(), ts, 0);
-    std::fill_n(half_sq_.data(), ts, 0);
-    for (int j = 0; j < hh; ++j) {
-      std::int64_t rs = 0, rq = 0;
-      const std::int16_t* src = half_.data() + static_cast<std::size_t>(j) * hw;
-      std::int64_t* S = half_sum_.data() + static_cast<std::size_t>(j + 1) * ts;
-      std::int64_t* Q = half_sq_.data() + static_cast<std::size_t>(j + 1) * ts;
-      const std::int64_t* Sp = S - ts;
-      const std::int64_t* Qp = Q - ts;
-      S[0] = Q[0] = 0;
-      for (int i = 0; i < hw; ++i) {
-        rs += src[i];
-        rq += static_cast<std::int64_t>(src[i]) * src[i];
-        S[i + 1] = Sp[i + 1] + rs;
-        Q[i + 1] = Qp[i + 1] + rq;
-      }
+    if (half_sum_.size() < n_table) {
+      half_sum_.resize(n_table);
+      half_sq_.resize(n_table);
     }
-    const TemplateView coarse{patch.half_data(), hs, patch.half_stride(), patch.half_sum(), patch.half_energy(),
-                              &patch, true};
+    std::fill_n(half_sum_.data(), ts, 0u);
+    std::fill_n(half_sq_.data(), ts, 0u);
+    for (int j = 0; j < hh; ++j) {
+      std::uint32_t* S = half_sum_.data() + static_cast<std::size_t>(j + 1) * ts;
+      std::uint32_t* Q = half_sq_.data() + static_cast<std::size_t>(j + 1) * ts;
+      S[0] = Q[0] = 0;
+      half_table_row(half_.data() + static_cast<std::size_t>(j) * hw, hw, S - ts, S, Q - ts, Q, simd);
+    }
     // Coarse scores (kNone: outside the region or abandoned below the floor of its time).
     const std::size_t n_coarse = static_cast<std::size_t>(kx) * static_cast<std::size_t>(ky);
     coarse_.resize(n_coarse);
     const double coarse_th = options_.threshold - options_.coarse_margin;
     const double spread = options_.coarse_candidates_spread;
     const std::int64_t nh = static_cast<std::int64_t>(hs) * hs;
-    const double energy_a = static_cast<double>(coarse.energy);
+    const std::int64_t half_sum_a = patch.half_sum();
+    const double energy_a = static_cast<double>(patch.half_energy());
     double coarse_best = kNone;
     // No bounded partial correlation here: with 7-row templates the bounds cost more than the rows they skip. A
     // position below the current floor max(coarse_th, best - spread) is discarded without its square root when
     // num² < floor² Ea Eb (1 - 1e-9) shows it; otherwise its score is computed and compared exactly.
+    if (half_dots_.size() < static_cast<std::size_t>(kx)) half_dots_.resize(static_cast<std::size_t>(kx));
     for (int cy = 0; cy < ky; ++cy) {
+      half_dots(patch.half_data(), hs, patch.half_stride(), half_.data() + static_cast<std::size_t>(cy) * hw, hw, kx,
+                half_dots_.data(), simd);
       for (int cx = 0; cx < kx; ++cx) {
         double& out = coarse_[static_cast<std::size_t>(cy) * kx + cx];
         out = kNone;
-        if (coarse.energy <= 0 || !inside(box.x + 2 * cx, box.y + 2 * cy)) continue;
+        if (patch.half_energy() <= 0 || !inside(box.x + 2 * cx, box.y + 2 * cy)) continue;
         ++res.n_evaluated;
-        const std::int64_t* s0 = half_sum_.data() + static_cast<std::size_t>(cy) * ts + cx;
-        const std::int64_t* s1 = s0 + static_cast<std::ptrdiff_t>(hs) * ts;
-        const std::int64_t* q0 = half_sq_.data() + static_cast<std::size_t>(cy) * ts + cx;
-        const std::int64_t* q1 = q0 + static_cast<std::ptrdiff_t>(hs) * ts;
-        const std::int64_t sb = s1[hs] - s1[0] - s0[hs] + s0[0];
-        const std::int64_t sbb = q1[hs] - q1[0] - q0[hs] + q0[0];
+        // Window sums from the modular tables (exact: see the kernels).
+        const std::uint32_t* s0 = half_sum_.data() + static_cast<std::size_t>(cy) * ts + cx;
+        const std::uint32_t* s1 = s0 + static_cast<std::ptrdiff_t>(hs) * ts;
+        const std::uint32_t* q0 = half_sq_.data() + static_cast<std::size_t>(cy) * ts + cx;
+        const std::uint32_t* q1 = q0 + static_cast<std::ptrdiff_t>(hs) * ts;
+        const std::int64_t sb = static_cast<std::uint32_t>(s1[hs] - s1[0] - s0[hs] + s0[0]);
+        const std::int64_t sbb = static_cast<std::uint32_t>(q1[hs] - q1[0] - q0[hs] + q0[0]);
         const std::int64_t energy_b = nh * sbb - sb * sb;
         const double floor = std::max(coarse_th, coarse_best - spread);
         double sc = 0.0;
         if (energy_b > 0) {
-          const std::int16_t* b = half_.data() + static_cast<std::size_t>(cy) * hw + cx;
-          std::int64_t sab = 0;
-          for (int r = 0; r < hs; ++r)
-            sab += dot_row(coarse, coarse.data + static_cast<std::ptrdiff_t>(r) * coarse.stride, b + r * hw, true);
-          const double num = static_cast<double>(nh * sab - coarse.sum * sb);
+          const std::int64_t sab = half_dots_[static_cast<std::size_t>(cx)];
+          const double num = static_cast<double>(nh * sab - half_sum_a * sb);
           const double den2 = energy_a * static_cast<double>(energy_b);
           if (floor > 0.0 && num * std::abs(num) < floor * floor * den2 * (1.0 - 1e-9)) continue;
           sc = num / std::sqrt(den2);

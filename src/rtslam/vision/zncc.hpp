@@ -3,8 +3,9 @@
 //
 // Score of a template a (n pixels) at position p of image b (the patch centred on pixel p):
 //   zncc = Σ (a - ā)(b - b̄) / sqrt(Σ (a - ā)² Σ (b - b̄)²) = (n Σab - Σa Σb) / sqrt((n Σa² - (Σa)²)(n Σb² - (Σb)²)),
-// computed from exact integer sums (Σb, Σb² from integral images of the search image, Σa, Σa² precomputed) with one
-// rounding at the end. A uniform image window (zero variance) scores 0; a uniform template cannot be matched.
+// computed from exact integer sums (Σa, Σa² precomputed; Σb, Σb² from integral images of the search region in an
+// exhaustive search, else summed from the window's rows) with one rounding at the end. A uniform image window (zero
+// variance) scores 0; a uniform template cannot be matched. Every SIMD level (simd.hpp) gives identical results.
 //
 // Search: every integer position inside an ellipse (the n-sigma innovation ellipse, (p - c)ᵀ Σ⁻¹ (p - c) <= n²) or
 // inside a box; positions outside are not evaluated. Either exhaustive (raster order) or two-level:
@@ -141,8 +142,8 @@ struct MatchResult {
   int n_pruned = 0;     // of those, abandoned by bounded partial correlation
 };
 
-/// Matches templates in images. Holds reusable buffers (integral images, score map): no allocation once they have
-/// grown; use one matcher per thread.
+/// Matches templates in images. Holds reusable buffers (integral images, half-resolution image and tables, score map):
+/// no allocation once they have grown; use one matcher per thread.
 class ZnccMatcher {
  public:
   explicit ZnccMatcher(ZnccOptions options = {});
@@ -154,7 +155,7 @@ class ZnccMatcher {
 
  private:
   ZnccOptions options_;
-  IntegralImages integral_;
+  IntegralImages integral_;  // exhaustive search only
   enum : std::uint8_t { kUnset = 0, kExact = 1, kBelow = 2 };
   struct Candidate {
     double score;
@@ -166,8 +167,9 @@ class ZnccMatcher {
   std::vector<Candidate> candidates_;   // climb starts
   std::vector<std::uint16_t> half_rows_;  // horizontally reduced rows around the search box
   std::vector<std::int16_t> half_;      // half-resolution image ([1 2 1]² sums) around the search box
-  std::vector<std::int64_t> half_sum_;  // its integral images
-  std::vector<std::int64_t> half_sq_;
+  std::vector<std::uint32_t> half_sum_;  // its integral images (modulo 2^32, exact for template-sized windows)
+  std::vector<std::uint32_t> half_sq_;
+  std::vector<std::uint32_t> half_dots_;  // Σ ab at one row of coarse positions
 };
 
 }  // namespace rtslam::vision

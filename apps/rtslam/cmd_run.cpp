@@ -18,7 +18,6 @@
 #include "rtslam/eval/metrics.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
-#include "rtslam/io/writers.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/pipeline/demo_config.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
@@ -197,6 +196,19 @@ void run_dataset(const RunOptions& ro) {
                       {"gravity_W", v3(result.gravity_W)},
                       {"accel_bias", v3(result.accel_bias)},
                       {"gyro_bias", v3(result.gyro_bias)}};
+    if (result.extrinsics_estimated) {
+      const auto pose = [&](const math::Pose& T) {
+        return nlohmann::json{{"p_RS", v3(T.p)}, {"q_RS_wxyz", {T.q.w(), T.q.x(), T.q.y(), T.q.z()}}};
+      };
+      const math::Pose d = result.T_RS_calibration.inverse() * result.T_RS_estimate;
+      summary["imu"]["extrinsics"] = {
+          {"calibration", pose(result.T_RS_calibration)},
+          {"estimate", pose(result.T_RS_estimate)},
+          {"std_p_m", v3(result.T_RS_std.head<3>())},
+          {"std_theta_deg", v3(result.T_RS_std.tail<3>() * 180.0 / M_PI)},
+          {"change_from_calibration", {{"p_m", (result.T_RS_estimate.p - result.T_RS_calibration.p).norm()},
+                                       {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
+    }
   }
   summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
   summary["input"] = ds.source->stats().to_json();

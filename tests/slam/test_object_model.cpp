@@ -81,7 +81,7 @@ TEST(ObjectModel, TwoRobotsTwoCamerasShareLandmarks) {
       compute_innovation_covariance(map.state(), o, 1.0);
       EXPECT_GT(o.S.determinant(), 0.0);
       const Eigen::Vector2d y(0.5, -0.5);
-      const auto res = map.state().correct(o.blocks, o.H, y, o.R, 9.0);
+      const auto res = map.state().correct(o.involved(), o.H, y, o.R, 9.0);
       EXPECT_TRUE(res.ok()) << filter::to_string(res.status);
       ++corrected;
     }
@@ -145,6 +145,68 @@ TEST(ObjectModel, ObservationJacobianMatchesNumeric) {
     };
     EXPECT_TRUE(test::check_jacobian(std::string("H ") + to_string(l->type()), f, x0, Eigen::MatrixXd(o.H), in,
                                      test::Layout::euclidean(2), {.step = 1e-6, .rtol = 1e-5, .atol = 1e-4}));
+  }
+}
+
+}  // namespace
+}  // namespace rtslam::slam
+
+namespace rtslam::slam {
+namespace {
+
+// A camera whose extrinsics are a map block: the observation Jacobian has [robot, sensor, landmark] columns, each
+// checked against numeric differentiation; a landmark initialized from it is correlated with the extrinsics.
+using Eigen::MatrixXd;
+
+TEST(ObjectModel, EstimatedExtrinsicsJoinTheObservationJacobian) {
+  World world;
+  Map& map = world.add_map();
+  auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
+  Sensor& cam = robot->add_sensor(std::make_unique<PinholeSensor>(
+      "cam", test_camera(), math::Pose{math::exp_so3(Eigen::Vector3d(0.02, -0.05, 0.1)), {0.05, -0.02, 0.01}}));
+  Eigen::Matrix<double, 6, 6> prior = Eigen::Matrix<double, 6, 6>::Identity() * 1e-4;
+  cam.estimate_extrinsics(prior);
+  Eigen::MatrixXd P = 1e-4 * Eigen::MatrixXd::Identity(12, 12);
+  P.topLeftCorner<6, 6>().setZero();
+  map.add_robot(std::move(robot), cv_mean({0.1, 0.2, 0.0}, math::exp_so3(Eigen::Vector3d(0.1, 0.2, -0.1))), P, 0);
+  ASSERT_NE(cam.block(), filter::kNoBlock);
+  const filter::State& st = map.state();
+  EXPECT_EQ(MatrixXd(st.cov(cam.block())), MatrixXd(prior));
+  Landmark* l = init_ahp_landmark(map, cam, {300, 220}, 1.0, models::AhpPrior{}, 0);
+  ASSERT_NE(l, nullptr);
+  EXPECT_GT(MatrixXd(st.cov(l->block(), cam.block())).norm(), 1e-6);  // the anchor depends on T_RS
+  Landmark* euc = reparametrize_to_euclidean(map, *init_ahp_landmark(map, cam, {420, 300}, 1.0, models::AhpPrior{}, 0));
+  // Move the estimates off the initialization point so that every column is exercised.
+  map.state().mean(cam.block()).head<3>() += Eigen::Vector3d(0.01, -0.02, 0.005);
+  map.state().mean(l->block())[6] *= 0.7;
+  for (Landmark* lm : {l, euc}) {
+    Observation& o = *lm->observation_of(cam);
+    ASSERT_TRUE(predict_observation(st, st.mean_vector(), o, 0.0, true));
+    ASSERT_EQ(o.block_count, 3);
+    EXPECT_EQ(o.blocks[1], cam.block());
+    const auto& rb = st.block(cam.robot().block());
+    const auto& sb = st.block(cam.block());
+    const auto& lb = st.block(lm->block());
+    const test::Layout in = test::Layout::euclidean(3)
+                                .then_quaternion()
+                                .then_euclidean(6)
+                                .then_euclidean(3)
+                                .then_quaternion()
+                                .then_euclidean(lb.ambient_size());
+    Eigen::VectorXd x0(13 + 7 + lb.ambient_size());
+    x0 << st.mean(cam.robot().block()), st.mean(cam.block()), st.mean(lm->block());
+    const auto f = [&](const Eigen::VectorXd& x) {
+      Eigen::VectorXd mean = st.mean_vector();
+      mean.segment(rb.ambient_offset, 13) = x.head(13);
+      mean.segment(sb.ambient_offset, 7) = x.segment(13, 7);
+      mean.segment(lb.ambient_offset, lb.ambient_size()) = x.tail(lb.ambient_size());
+      Observation tmp = o;
+      predict_observation(st, mean, tmp, 0.0, false);
+      return Eigen::VectorXd(tmp.h);
+    };
+    EXPECT_TRUE(test::check_jacobian(std::string("H with extrinsics, ") + to_string(lm->type()), f, x0,
+                                     Eigen::MatrixXd(o.H), in, test::Layout::euclidean(2),
+                                     {.step = 1e-6, .rtol = 1e-5, .atol = 1e-4}));
   }
 }
 

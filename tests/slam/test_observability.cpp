@@ -141,5 +141,39 @@ TEST(Observability, ConstrainedJacobiansAnnihilateTheBasisAtLaterEstimates) {
   EXPECT_GT((MatrixXd(op.H) * N).norm(), 1e-4 * MatrixXd(op.H).norm());
 }
 
+// The constraint must not change what a camera can measure: the constrained H has no velocity, bias or gravity
+// columns, and with estimated extrinsics a change of the robot pose compensated by the extrinsics (T_WS unchanged)
+// is still invisible.
+TEST(Observability, ConstrainedJacobiansKeepTheMeasurementStructure) {
+  World world;
+  filter::StateOptions so;
+  so.nullspace_dim = Robot::kNullspaceDim;
+  Map& map = world.add_map(so);
+  auto robot = std::make_unique<InertialRobot>(models::InertialParams{});
+  Sensor& cam = robot->add_sensor(std::make_unique<PinholeSensor>(
+      "cam", camera(), math::Pose{math::exp_so3(Vector3d(0.1, -0.2, 0.05)), Vector3d(0.05, -0.02, 0.01)}));
+  cam.estimate_extrinsics(1e-4 * Eigen::Matrix<double, 6, 6>::Identity());
+  map.add_robot(std::move(robot), inertial_state(), 1e-3 * MatrixXd::Identity(18, 18), 0);
+  Landmark* l = init_ahp_landmark(map, cam, {380, 260}, 1.0, models::AhpPrior{}, 0);
+  ASSERT_NE(l, nullptr);
+  filter::State& st = map.state();
+  st.mean(l->block()).tail<1>()[0] *= 0.6;
+  st.mean(cam.robot().block()).head<3>() += Vector3d(0.05, -0.03, 0.02);
+  Observation o = *l->observation_of(cam);
+  ASSERT_TRUE(predict_observation(st, st.mean_vector(), o, 0.0, true));
+  ASSERT_EQ(o.H.cols(), 18 + 6 + 7);
+  EXPECT_EQ(MatrixXd(o.H.middleCols(6, 12)), MatrixXd::Zero(2, 12));  // v, a_b, ω_b, g
+  // Robot pose moved by δ_R, extrinsics by δ_S = −J_TWS_TRS⁻¹ J_TWS_TWR δ_R: T_WS is unchanged to first order.
+  Eigen::Matrix<double, 6, 6> J_R, J_S;
+  cam.pose_in_world(st.mean_vector(), &J_R, &J_S);
+  Eigen::Matrix<double, 6, 1> d_R;
+  d_R << 0.3, -0.1, 0.2, 0.05, 0.02, -0.04;
+  const Eigen::Matrix<double, 6, 1> d_S = -J_S.inverse() * J_R * d_R;
+  EXPECT_LT((MatrixXd(o.H.leftCols(6)) * d_R + MatrixXd(o.H.middleCols(18, 6)) * d_S).norm(), 1e-9 * MatrixXd(o.H).norm());
+  MatrixXd N(31, 6);
+  N << MatrixXd(st.nullspace(cam.robot().block())), MatrixXd(st.nullspace(cam.block())), MatrixXd(st.nullspace(l->block()));
+  EXPECT_LT((MatrixXd(o.H) * N).norm(), 1e-10 * MatrixXd(o.H).norm());
+}
+
 }  // namespace
 }  // namespace rtslam::slam

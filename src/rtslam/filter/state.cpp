@@ -52,9 +52,7 @@ State::State(StateOptions options)
       HP_(MatrixXd::Zero(options.max_measurement_rows, options.tangent_capacity)),
       tmp_(MatrixXd::Zero(options.max_block_tangent, options.tangent_capacity)),
       tmp_small_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)),
-      F_oc_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)),
-      N_oc_(MatrixXd::Zero(options.tangent_capacity, options.nullspace_dim)),
-      HN_oc_(MatrixXd::Zero(options.max_measurement_rows, options.nullspace_dim)) {
+      F_oc_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)) {
   N_ = MatrixXd::Zero(options.tangent_capacity, options.nullspace_dim);
   blocks_.reserve(256);
   runs_.reserve(64);
@@ -257,7 +255,7 @@ Eigen::Block<const MatrixXd> State::nullspace(BlockId b) const {
 }
 
 void State::predict_constrained(BlockId id, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q,
-                                const Eigen::Ref<const MatrixXd>& N_after) {
+                                const Eigen::Ref<const MatrixXd>& N_after, int first_col, int n_cols) {
   const int k = options_.nullspace_dim;
   if (k == 0) {
     predict(id, F, Q);
@@ -265,41 +263,31 @@ void State::predict_constrained(BlockId id, const Eigen::Ref<const MatrixXd>& F,
   }
   const BlockInfo& b = block(id);
   const int t = b.tangent_size();
-  RTSLAM_CHECK(N_after.rows() == t && N_after.cols() == k, "predict_constrained: basis size mismatch");
+  RTSLAM_CHECK(N_after.rows() == t && N_after.cols() == k && first_col >= 0 && n_cols >= 1 && first_col + n_cols <= t,
+               "predict_constrained: basis or column range mismatch");
   const auto U = N_.block(b.tangent_offset, 0, t, k);
+  const auto U_C = U.middleRows(first_col, n_cols);
   auto Fc = F_oc_.topLeftCorner(t, t);
   Fc = F;
-  // F* = F − (F U − W)(UᵀU)⁻¹Uᵀ: the smallest change of F with F* U = W (U has full column rank for a robot block;
-  // the pseudo-inverse keeps this defined otherwise). Fixed maximum sizes: nothing is allocated.
-  const SmallMatrix UtU = U.transpose() * U;
+  // Fixed maximum sizes (t <= 64, k <= 16): nothing is allocated.
+  const SmallMatrix UtU = U_C.transpose() * U_C;
   const Eigen::CompleteOrthogonalDecomposition<SmallMatrix> cod(UtU);
   const SmallMatrix UtU_inv = cod.pseudoInverse();
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 64, 16> residual = F * U;
   residual -= N_after;
-  Fc.noalias() -= (residual * UtU_inv) * U.transpose();
+  Fc.middleCols(first_col, n_cols).noalias() -= (residual * UtU_inv) * U_C.transpose();
   N_.block(b.tangent_offset, 0, t, k) = N_after;
   predict(id, Fc, Q);
 }
 
-void State::constrain_jacobian(std::span<const BlockId> blocks, Eigen::Ref<MatrixXd> H) const {
-  const int k = options_.nullspace_dim;
-  if (k == 0) return;
-  const int n = total_tangent(blocks);
-  RTSLAM_CHECK(H.cols() == n && H.rows() <= HN_oc_.rows(), "constrain_jacobian: size mismatch");
-  auto N = N_oc_.topRows(n);
-  int row = 0;
-  for (BlockId id : blocks) {
-    const BlockInfo& b = block(id);
-    N.middleRows(row, b.tangent_size()) = N_.block(b.tangent_offset, 0, b.tangent_size(), k);
-    row += b.tangent_size();
-  }
+void project_out_basis(Eigen::Ref<MatrixXd> A, const Eigen::Ref<const MatrixXd>& N) {
+  RTSLAM_CHECK(A.cols() == N.rows() && A.rows() <= 64 && A.cols() <= 64 && N.cols() <= 16,
+               "project_out_basis: size mismatch");
   const SmallMatrix NtN = N.transpose() * N;
-  // Directions of N absent from these blocks (zero columns) are handled by the rank-revealing pseudo-inverse.
   const Eigen::CompleteOrthogonalDecomposition<SmallMatrix> cod(NtN);
   const SmallMatrix G = cod.pseudoInverse();
-  auto HN = HN_oc_.topRows(H.rows());
-  HN.noalias() = H * N;
-  H.noalias() -= (HN * G) * N.transpose();
+  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 64, 16> AN = A * N;
+  A.noalias() -= (AN * G) * N.transpose();
 }
 
 void State::compute_PHt(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H) const {

@@ -19,10 +19,9 @@
 // vision-aided inertial navigation", 2014): the State then tracks, per block, its rows N_b of a basis N of the
 // directions the measurements cannot observe (for SLAM: a global translation and rotation of the world). A block
 // added as a function of others gets N_new = J N_parents; a robot's prediction may be constrained to map its basis
-// at the previous step onto the basis at the new estimate (predict_constrained), and measurement Jacobians are
-// projected so that H N = 0 (constrain_jacobian). Both are the smallest (Frobenius) changes that satisfy the
-// constraint; a plain EKF linearized at changing estimates would otherwise gain information along N and become
-// overconfident.
+// at the previous step onto the basis at the new estimate (predict_constrained), and measurement Jacobians are made
+// to satisfy H N = 0 (project_out_basis, applied by the caller where the measurement's structure is known). A plain
+// EKF linearized at changing estimates would otherwise gain information along N and become overconfident.
 //
 // Not thread-safe: workspaces are shared by the const queries too.
 #include <limits>
@@ -123,19 +122,18 @@ class State {
   int nullspace_dim() const { return options_.nullspace_dim; }
   /// Block b's rows of the basis (tangent size × nullspace_dim).
   Eigen::Block<const MatrixXd> nullspace(BlockId b) const;
-  /// Projects a compressed Jacobian over `blocks` (m × Σ tangent) onto the complement of the basis rows of those
-  /// blocks: H ← H (I − N (NᵀN)⁻¹ Nᵀ), so that H N = 0. No-op when nullspace_dim is 0.
-  void constrain_jacobian(std::span<const BlockId> blocks, Eigen::Ref<MatrixXd> H) const;
 
   // --- prediction -----------------------------------------------------------------------------------------
   /// After the caller has written the predicted mean of block b: P_bb ← F P_bb Fᵀ + Q, P_bo ← F P_bo for every
   /// other active block o. F and Q are (t × t), t the block's tangent size.
   void predict(BlockId b, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q);
   /// predict() with an observability-constrained transition: with U = N_b (the block's basis rows before) and
-  /// W = N_after (the model's basis at the predicted mean), F* = F − (F U − W)(UᵀU)⁻¹Uᵀ (so F* U = W) is applied
-  /// and N_b ← W. Without a tracked basis (nullspace_dim 0) this is predict().
+  /// W = N_after (the model's basis at the predicted mean), only the columns C = [first_col, first_col + n_cols)
+  /// of F change, by the least change that makes F* U = W: F*_C = F_C − (F U − W)(U_Cᵀ U_C)⁺ U_Cᵀ (U_C: rows C of
+  /// U). The columns are those the model's linearization point enters (e.g. the attitude error's); the residual
+  /// F U − W lies in their range when U_C has full rank. Then N_b ← W. Without a tracked basis this is predict().
   void predict_constrained(BlockId b, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q,
-                           const Eigen::Ref<const MatrixXd>& N_after);
+                           const Eigen::Ref<const MatrixXd>& N_after, int first_col, int n_cols);
 
   // --- correction -----------------------------------------------------------------------------------------
   /// S = H P Hᵀ + R for a compressed H over `blocks` (m × Σ tangent). Writes S (m × m).
@@ -186,8 +184,10 @@ class State {
   MatrixXd tmp_;           // max block tangent × tangent capacity (prediction)
   MatrixXd tmp_small_;     // max block tangent × max block tangent
   MatrixXd F_oc_;          // max block tangent × max block tangent (constrained transition)
-  mutable MatrixXd N_oc_;  // tangent capacity × nullspace_dim (gathered basis rows of a Jacobian's blocks)
-  mutable MatrixXd HN_oc_; // max rows × nullspace_dim
 };
+
+/// A ← A (I − N (NᵀN)⁺ Nᵀ): the least change of the rows of A (at most 64 x 64) that makes A N = 0, for a basis N
+/// (A.cols() × k, k <= 16; rank-deficient N is handled by the pseudo-inverse). Allocation-free.
+void project_out_basis(Eigen::Ref<MatrixXd> A, const Eigen::Ref<const MatrixXd>& N);
 
 }  // namespace rtslam::filter

@@ -120,6 +120,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   const auto& a = o.search;
   YAML::Node s = root["search"];
   s["sigma_px"] = a.sigma_px;
+  s["second_order_depth"] = a.second_order_depth;
   s["n_sigma"] = a.n_sigma;
   s["max_updates"] = a.max_updates;
   s["max_updates_ransac"] = a.max_updates_ransac;
@@ -256,6 +257,12 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
     robot_ptr = std::make_unique<slam::ConstantVelocityRobot>(o.motion);
   }
   slam::Sensor& sensor = robot_ptr->add_sensor(std::make_unique<slam::PinholeSensor>(cal.name, intr, T_RS));
+  if (inertial && o.imu.estimate_extrinsics) {
+    Eigen::Matrix<double, 6, 1> var;
+    const double rot = o.imu.extrinsics_std_deg * M_PI / 180.0;
+    var << Eigen::Vector3d::Constant(o.imu.extrinsics_std_m * o.imu.extrinsics_std_m), Eigen::Vector3d::Constant(rot * rot);
+    sensor.estimate_extrinsics(var.asDiagonal());
+  }
   slam::Robot* robot = nullptr;
   auto dm_ptr = std::make_unique<strategies::ActiveSearchDataManager>(o.search, mm, intr.width, intr.height,
                                                                       o.seed * 7919 + 1);
@@ -286,7 +293,8 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   const auto start = [&](TimeNs t) -> bool {
     if (inertial) {
       if (imu_window.empty() || imu_window.front().t > t - from_seconds(o.imu.init_window_s)) return false;
-      const InertialStart s0 = initialize_inertial(imu_window, t, o.imu, ground_truth_at(t));
+      const InertialStart s0 =
+          initialize_inertial(imu_window, t, o.imu, ground_truth_at(t), ground_truth_at(t - from_seconds(o.imu.init_window_s)));
       result.inertial_start = s0.describe();
       logger("slam")->info("inertial robot: {}", result.inertial_start);
       robot = &map.add_robot(std::move(robot_ptr), s0.x, s0.P, t);
@@ -410,6 +418,13 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
     result.gravity_W = x.segment<3>(models::InertialIndex::kG);
     result.accel_bias = x.segment<3>(models::InertialIndex::kAb);
     result.gyro_bias = x.segment<3>(models::InertialIndex::kWb);
+  }
+  result.T_RS_calibration = T_RS;
+  result.T_RS_estimate = T_RS;
+  if (sensor.block() != filter::kNoBlock && robot != nullptr) {
+    result.extrinsics_estimated = true;
+    result.T_RS_estimate = sensor.T_RS(map.state().mean_vector());
+    result.T_RS_std = map.state().cov(sensor.block()).diagonal().cwiseSqrt();
   }
   if (robot == nullptr) throw DataError(fmt::format("dataset '{}' has no image of camera {}", ds.name, o.camera));
   const Eigen::VectorXd& mean = map.state().mean_vector();

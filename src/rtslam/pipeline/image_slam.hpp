@@ -95,6 +95,11 @@ struct ImageSlamResult {
   Eigen::Vector3d gravity_W = Eigen::Vector3d::Zero();  // final estimates
   Eigen::Vector3d accel_bias = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
+  // Camera–IMU extrinsics (imu/estimate_extrinsics): the calibration and the final estimate with its std
+  // ([δp (m) δθ (rad)], right perturbation in S).
+  bool extrinsics_estimated = false;
+  math::Pose T_RS_calibration, T_RS_estimate;
+  Eigen::Matrix<double, 6, 1> T_RS_std = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
 /// The simulated sequence of `options.sim_preset` (sim::SimConfig::load) with its noise and motion drawn from

@@ -26,7 +26,9 @@ void InertialOptions::validate() const {
                                std::pair{"gravity_std_standstill", gravity_std_standstill},
                                std::pair{"gravity_std_motion", gravity_std_motion},
                                std::pair{"noise_scale", noise_scale},
-                               std::pair{"random_walk_scale", random_walk_scale}}) {
+                               std::pair{"random_walk_scale", random_walk_scale},
+                               std::pair{"extrinsics_std_m", extrinsics_std_m},
+                               std::pair{"extrinsics_std_deg", extrinsics_std_deg}}) {
     require_bound(v > 0.0, w, key, v, "> 0");
   }
   if (time_offset_s) require_bound(std::abs(*time_offset_s) < 1.0, w, "time_offset", *time_offset_s, "within ±1 s");
@@ -49,6 +51,9 @@ void read_inertial(YamlMap m, InertialOptions& o) {
   m.get("biases_from_groundtruth", o.biases_from_groundtruth);
   m.get("noise_scale", o.noise_scale);
   m.get("random_walk_scale", o.random_walk_scale);
+  m.get("estimate_extrinsics", o.estimate_extrinsics);
+  m.get("extrinsics_std_m", o.extrinsics_std_m);
+  m.get("extrinsics_std_deg", o.extrinsics_std_deg);
   double v = 0.0;
   if (m.has("time_offset")) { m.get("time_offset", v); o.time_offset_s = v; }
   if (m.has("gyro_saturation")) { m.get("gyro_saturation", v); o.gyro_saturation = v; }
@@ -72,6 +77,9 @@ YAML::Node inertial_to_yaml(const InertialOptions& o) {
   n["biases_from_groundtruth"] = o.biases_from_groundtruth;
   n["noise_scale"] = o.noise_scale;
   n["random_walk_scale"] = o.random_walk_scale;
+  n["estimate_extrinsics"] = o.estimate_extrinsics;
+  n["extrinsics_std_m"] = o.extrinsics_std_m;
+  n["extrinsics_std_deg"] = o.extrinsics_std_deg;
   if (o.time_offset_s) n["time_offset"] = *o.time_offset_s;
   if (o.gyro_saturation) n["gyro_saturation"] = *o.gyro_saturation;
   if (o.accel_saturation) n["accel_saturation"] = *o.accel_saturation;
@@ -102,19 +110,20 @@ std::string InertialStart::describe() const {
 }
 
 InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o,
-                                  const StampedPose* gt) {
+                                  const StampedPose* gt, const StampedPose* gt_start) {
+  const TimeNs t0 = t - from_seconds(o.init_window_s);
+  std::vector<const ImuWindowSample*> in;
   Eigen::Vector3d sa = Eigen::Vector3d::Zero(), sw = Eigen::Vector3d::Zero();
   Eigen::Vector3d qa = Eigen::Vector3d::Zero(), qw = Eigen::Vector3d::Zero();
-  int n = 0;
-  const TimeNs t0 = t - from_seconds(o.init_window_s);
   for (const auto& s : window) {
     if (s.t < t0 || s.t > t) continue;
+    in.push_back(&s);
     sa += s.m.accel;
     sw += s.m.gyro;
     qa += s.m.accel.cwiseAbs2();
     qw += s.m.gyro.cwiseAbs2();
-    ++n;
   }
+  const int n = static_cast<int>(in.size());
   if (n < 10) {
     throw DataError(fmt::format("inertial initialization at t = {} ns: {} IMU samples in the {:.2f} s window, need 10",
                                 t, n, o.init_window_s));
@@ -144,8 +153,28 @@ InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, Ti
   } else if (s.standstill) {
     x.segment<3>(I::kWb) = mean_w;
   }
-  // Mean specific force f = Rᵀ(a − g) + a_b with a ≈ 0 over the window: g = −R (f − a_b).
-  x.segment<3>(I::kG) = -R * (mean_a - x.segment<3>(I::kAb));
+  // Gravity from the mean specific force in W: the accelerometer measures f = Rᵀ(a − g) + a_b, so over the window
+  // g = ā − mean(R_k (f_k − a_b)). Each sample is rotated into W by the gyro integrated over the window (midpoint
+  // rule, backwards from the attitude at t), so rotation during the window does not tilt the estimate. The mean
+  // acceleration ā is zero at standstill; in motion it comes from the ground-truth velocities at both ends of the
+  // window when there are any, and is otherwise unknown (zero with the large `gravity_std_motion`).
+  const Eigen::Vector3d a_b = x.segment<3>(I::kAb), w_b = x.segment<3>(I::kWb);
+  std::vector<Eigen::Matrix3d> R_t_k(static_cast<std::size_t>(n));  // R_{R(t) R(t_k)}
+  R_t_k.back() = Eigen::Matrix3d::Identity();
+  for (int k = n - 2; k >= 0; --k) {
+    const double dt = to_seconds(in[static_cast<std::size_t>(k + 1)]->t - in[static_cast<std::size_t>(k)]->t);
+    const Eigen::Vector3d w =
+        0.5 * (in[static_cast<std::size_t>(k)]->m.gyro + in[static_cast<std::size_t>(k + 1)]->m.gyro) - w_b;
+    R_t_k[static_cast<std::size_t>(k)] =
+        R_t_k[static_cast<std::size_t>(k + 1)] * math::exp_so3(w * dt).toRotationMatrix().transpose();
+  }
+  Eigen::Vector3d f_W = Eigen::Vector3d::Zero();
+  for (int k = 0; k < n; ++k) f_W += R * R_t_k[static_cast<std::size_t>(k)] * (in[static_cast<std::size_t>(k)]->m.accel - a_b);
+  f_W /= n;
+  Eigen::Vector3d a_mean = Eigen::Vector3d::Zero();
+  const bool known_motion = !s.standstill && gt && gt_start && gt->v_WR && gt_start->v_WR && gt->t > gt_start->t;
+  if (known_motion) a_mean = (*gt->v_WR - *gt_start->v_WR) / to_seconds(gt->t - gt_start->t);
+  x.segment<3>(I::kG) = a_mean - f_W;
   double v_std = o.velocity_std_motion;
   if (s.standstill) {
     v_std = o.velocity_std_standstill;
@@ -159,12 +188,13 @@ InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, Ti
   const double wb_std = s.standstill && !gt_biases ? std::max(1e-3, s.gyro_std / std::sqrt(static_cast<double>(n)))
                                                    : o.gyro_bias_std;
   P.block<3, 3>(I::kDwb, I::kDwb) = wb_std * wb_std * Eigen::Matrix3d::Identity();
-  // g = −R (f̄ − a_b): its error is the accelerometer bias error rotated into W (correlated with a_b) plus the spread
-  // of the mean (standstill) or the unknown mean acceleration (motion).
-  const double g_std = s.standstill ? o.gravity_std_standstill : o.gravity_std_motion;
+  // g = ā − mean(R_k (f_k − a_b)): its error is the accelerometer bias error rotated into W (correlated with a_b)
+  // plus the spread of the mean (standstill, or motion with ground-truth velocities) or the unknown mean
+  // acceleration (motion).
+  const double g_std = s.standstill || known_motion ? o.gravity_std_standstill : o.gravity_std_motion;
   P.block<3, 3>(I::kDg, I::kDg) =
       g_std * g_std * Eigen::Matrix3d::Identity() + o.accel_bias_std * o.accel_bias_std * Eigen::Matrix3d::Identity();
-  P.block<3, 3>(I::kDg, I::kDab) = o.accel_bias_std * o.accel_bias_std * R;  // ∂g/∂a_b = R
+  P.block<3, 3>(I::kDg, I::kDab) = o.accel_bias_std * o.accel_bias_std * R;  // ∂g/∂a_b = R (at t)
   P.block<3, 3>(I::kDab, I::kDg) = P.block<3, 3>(I::kDg, I::kDab).transpose();
   return s;
 }

@@ -9,7 +9,8 @@
 //    accelerometer std 0.3–1.5 m/s²; in flight gyro std >= 0.12 rad/s): velocity ≈ 0, gyro bias = mean gyro,
 //    gravity from the mean specific force;
 //  - motion: velocity from the ground truth when there is one, else 0 with a large prior; gravity from the mean
-//    specific force with a larger uncertainty (the mean acceleration over the window is not zero).
+//    specific force (samples rotated into W by the gyro over the window), less the window's mean acceleration when
+//    the ground truth gives the velocity at both ends, else with a larger uncertainty.
 // The gauge (p and q) has zero covariance, as for the constant-velocity robot; the attitude is the ground truth's
 // when available (init_from_groundtruth) or identity, so gravity — a state, as the paper argues — carries the
 // initial roll and pitch and their uncertainty.
@@ -46,6 +47,9 @@ struct InertialOptions {
   std::optional<double> time_offset_s;    // t_imu = t_cam + t_d; default: the calibration's
   std::optional<double> gyro_saturation;  // rad/s per axis; default: the calibration's (none if unknown)
   std::optional<double> accel_saturation; // m/s² per axis; default: the calibration's
+  bool estimate_extrinsics = false;       // camera–IMU T_RS as a map block, from the calibration with the prior:
+  double extrinsics_std_m = 0.02;         //   position std (m, per axis) ...
+  double extrinsics_std_deg = 1.0;        //   ... and rotation std (deg, per axis)
   void validate() const;
 };
 
@@ -72,8 +76,9 @@ struct InertialStart {
 };
 
 /// The initial state at time t from the samples of [t − window, t] (at least 10 of them; DataError otherwise).
-/// `gt` (may be null): the ground-truth pose at t (pose, and velocity/biases when it has them).
+/// `gt` (may be null): the ground-truth pose at t (pose, and velocity/biases when it has them); `gt_start` (may be
+/// null): the ground truth at t − window, whose velocity gives the window's mean acceleration in motion.
 InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o,
-                                  const StampedPose* gt);
+                                  const StampedPose* gt, const StampedPose* gt_start = nullptr);
 
 }  // namespace rtslam::pipeline

@@ -40,6 +40,14 @@ Eigen::Vector3d AhpPointLandmark::position(const Eigen::VectorXd& mean) const {
   return models::ahp_to_euclidean(mean.segment<7>(ambient_offset_));
 }
 
+bool AhpPointLandmark::inverse_depth_direction(const filter::State& state, const Eigen::VectorXd& mean,
+                                               const math::Pose& T_WS, Eigen::Vector3d& dh_drho,
+                                               double& var_rho) const {
+  dh_drho = -(T_WS.q.conjugate() * (T_WS.p - mean.segment<3>(ambient_offset_)));
+  var_rho = state.cov(block())(6, 6);
+  return true;
+}
+
 Eigen::Vector3d EuclideanPointLandmark::to_sensor(const Eigen::VectorXd& mean, const math::Pose& T_WS,
                                                   Eigen::Matrix<double, 3, 6>* J_h_TWS, LandmarkJacobian* J_h_L) const {
   Eigen::Matrix3d J_p;

@@ -39,6 +39,14 @@ class Landmark {
                                     Eigen::Matrix<double, 3, 6>* J_h_TWS, LandmarkJacobian* J_h_L) const = 0;
   /// Euclidean position in W (for maps, evaluation, display).
   virtual Eigen::Vector3d position(const Eigen::VectorXd& mean) const = 0;
+  /// Parametrizations with an inverse-distance coordinate ρ: ∂h_S/∂ρ seen from T_WS (h_S is linear in ρ, the
+  /// projection is not) and the current variance of ρ, for the second-order term of the measurement noise
+  /// (observation.hpp). False for the others.
+  virtual bool inverse_depth_direction(const filter::State& state, const Eigen::VectorXd& mean, const math::Pose& T_WS,
+                                       Eigen::Vector3d& dh_drho, double& var_rho) const {
+    (void)state, (void)mean, (void)T_WS, (void)dh_drho, (void)var_rho;
+    return false;
+  }
 
   std::vector<Observation>& observations() { return observations_; }
   const std::vector<Observation>& observations() const { return observations_; }
@@ -69,6 +77,9 @@ class AhpPointLandmark final : public Landmark {
   Eigen::Vector3d to_sensor(const Eigen::VectorXd& mean, const math::Pose& T_WS, Eigen::Matrix<double, 3, 6>* J_h_TWS,
                             LandmarkJacobian* J_h_L) const override;
   Eigen::Vector3d position(const Eigen::VectorXd& mean) const override;
+  /// ∂h_S/∂ρ = −R_WSᵀ (p_WS − p0), and var(ρ).
+  bool inverse_depth_direction(const filter::State& state, const Eigen::VectorXd& mean, const math::Pose& T_WS,
+                               Eigen::Vector3d& dh_drho, double& var_rho) const override;
 };
 
 class EuclideanPointLandmark final : public Landmark {

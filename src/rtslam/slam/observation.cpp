@@ -11,8 +11,10 @@ bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean
   const Sensor& sensor = *obs.sensor;
   const Landmark& lmk = *obs.landmark;
   const Robot& robot = sensor.robot();
-  Eigen::Matrix<double, 6, 6> J_TWS_TWR;
-  const math::Pose T_WS = sensor.pose_in_world(mean, with_jacobians ? &J_TWS_TWR : nullptr);
+  const bool estimated_extrinsics = sensor.block() != filter::kNoBlock;
+  Eigen::Matrix<double, 6, 6> J_TWS_TWR, J_TWS_TRS;
+  const math::Pose T_WS = sensor.pose_in_world(mean, with_jacobians ? &J_TWS_TWR : nullptr,
+                                               with_jacobians && estimated_extrinsics ? &J_TWS_TRS : nullptr);
   Eigen::Matrix<double, 3, 6> J_h_TWS;
   LandmarkJacobian J_h_L;
   const Eigen::Vector3d h_S =
@@ -20,15 +22,43 @@ bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean
   Eigen::Matrix<double, 2, 3> J_z_h;
   obs.projectable = sensor.project(h_S, obs.h, with_jacobians ? &J_z_h : nullptr);
   obs.visible = obs.projectable && sensor.in_field(obs.h, margin);
-  obs.blocks = {robot.block(), lmk.block()};
+  obs.block_count = 0;
+  obs.blocks[static_cast<std::size_t>(obs.block_count++)] = robot.block();
+  if (estimated_extrinsics) obs.blocks[static_cast<std::size_t>(obs.block_count++)] = sensor.block();
+  obs.blocks[static_cast<std::size_t>(obs.block_count++)] = lmk.block();
   if (with_jacobians && obs.projectable) {
     const int tr = state.block(robot.block()).tangent_size();
+    const int ts = estimated_extrinsics ? 6 : 0;
     const int tl = state.block(lmk.block()).tangent_size();
-    obs.H.setZero(2, tr + tl);
-    obs.H.leftCols<6>().noalias() = J_z_h * J_h_TWS * J_TWS_TWR;
-    obs.H.rightCols(tl).noalias() = J_z_h * J_h_L;
-    // Observability constraints (when the filter tracks its unobservable basis): H N = 0.
-    state.constrain_jacobian(obs.blocks, obs.H);
+    obs.H.setZero(2, tr + ts + tl);
+    // h depends on the state through the sensor pose T_WS and the landmark: H = [A_WS J_TWS_TWR, A_WS J_TWS_TRS, A_L]
+    // with A = [J_z_TWS, J_z_L].
+    Eigen::Matrix<double, 2, Eigen::Dynamic, Eigen::ColMajor, 2, 6 + kMaxLandmarkTangent> A(2, 6 + tl);
+    A.leftCols<6>().noalias() = J_z_h * J_h_TWS;
+    A.rightCols(tl).noalias() = J_z_h * J_h_L.leftCols(tl);
+    if (state.nullspace_dim() > 0) {
+      // Observability constraints: A [N_WS; N_L] = 0, with N_WS = J_TWS_TWR N_R (+ J_TWS_TRS N_S) the sensor pose's
+      // rows of the tracked basis. Constraining A, not H, keeps H's structure: no velocity, bias or gravity
+      // columns appear, and directions that leave T_WS unchanged (robot and extrinsics moving together) stay
+      // unobservable.
+      const int k = state.nullspace_dim();
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6 + kMaxLandmarkTangent, 16> N(6 + tl, k);
+      N.topRows<6>().noalias() = J_TWS_TWR * state.nullspace(robot.block()).topRows<6>();
+      if (estimated_extrinsics) N.topRows<6>().noalias() += J_TWS_TRS * state.nullspace(sensor.block());
+      N.bottomRows(tl) = state.nullspace(lmk.block());
+      filter::project_out_basis(A, N);
+    }
+    obs.H.leftCols<6>().noalias() = A.leftCols<6>() * J_TWS_TWR;
+    if (estimated_extrinsics) obs.H.middleCols<6>(tr).noalias() = A.leftCols<6>() * J_TWS_TRS;
+    obs.H.rightCols(tl) = A.rightCols(tl);
+    obs.R_depth.setZero();
+    Eigen::Vector3d dh_drho;
+    double var_rho = 0.0;
+    if (lmk.inverse_depth_direction(state, mean, T_WS, dh_drho, var_rho) && h_S.z() != 0.0) {
+      const Eigen::Vector2d dz = J_z_h * dh_drho;
+      const Eigen::Vector2d d2z = -2.0 * (dh_drho.z() / h_S.z()) * dz;
+      obs.R_depth.noalias() = 0.5 * var_rho * var_rho * d2z * d2z.transpose();
+    }
     obs.lin_T_WS << T_WS.p, math::quat_to_wxyz(T_WS.q);
     obs.lin_landmark = mean.segment(state.block(lmk.block()).ambient_offset, state.block(lmk.block()).ambient_size());
   }
@@ -36,9 +66,15 @@ bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean
   return obs.visible;
 }
 
-void compute_innovation_covariance(const filter::State& state, Observation& obs, double sigma) {
-  obs.R = sigma * sigma * Eigen::Matrix2d::Identity();
-  state.innovation_covariance(obs.blocks, obs.H, obs.R, obs.S);
+Eigen::Matrix2d measurement_noise(const Observation& obs, double sigma, bool second_order) {
+  Eigen::Matrix2d R = sigma * sigma * Eigen::Matrix2d::Identity();
+  if (second_order) R += obs.R_depth;
+  return R;
+}
+
+void compute_innovation_covariance(const filter::State& state, Observation& obs, double sigma, bool second_order) {
+  obs.R = measurement_noise(obs, sigma, second_order);
+  state.innovation_covariance(obs.involved(), obs.H, obs.R, obs.S);
 }
 
 }  // namespace rtslam::slam

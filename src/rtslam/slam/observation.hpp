@@ -5,6 +5,7 @@
 // Jacobians were evaluated at (so first-estimate Jacobians can be added without redesign).
 #include <any>
 #include <array>
+#include <span>
 
 #include <Eigen/Core>
 
@@ -30,10 +31,23 @@ struct Observation {
   bool projectable = false;  // in front of the sensor and inside its model's domain
   bool visible = false;      // projectable and inside the field (image)
   Eigen::Vector2d h = Eigen::Vector2d::Zero();
-  std::array<filter::BlockId, 2> blocks{filter::kNoBlock, filter::kNoBlock};  // [robot, landmark]
-  // Compressed Jacobian: robot tangent cols then landmark tangent cols (fixed maximum: no heap allocation).
+  // Involved blocks: [robot, sensor (when its extrinsics are estimated), landmark]; the landmark comes last, and the
+  // blocks before it are shared by every observation of the sensor (batched corrections put them first).
+  std::array<filter::BlockId, 3> blocks{filter::kNoBlock, filter::kNoBlock, filter::kNoBlock};
+  int block_count = 0;
+  std::span<const filter::BlockId> involved() const { return {blocks.data(), static_cast<std::size_t>(block_count)}; }
+  std::span<const filter::BlockId> sensor_blocks() const {
+    return {blocks.data(), static_cast<std::size_t>(block_count - 1)};
+  }
+  filter::BlockId landmark_block() const { return blocks[static_cast<std::size_t>(block_count - 1)]; }
+  // Compressed Jacobian: the columns of the involved blocks in that order (fixed maximum: no heap allocation).
   Eigen::Matrix<double, 2, Eigen::Dynamic, Eigen::ColMajor, 2, 64> H;
   Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
+  // Second-order term of the measurement for inverse-depth landmarks (computed with the Jacobians): the
+  // projection is curved along ρ, d²z/dρ² = −2 (∂h_z/∂ρ / h_z) dz/dρ (distortion's curvature neglected), and a
+  // Gaussian second-order filter adds ½ (d²z/dρ²)(d²z/dρ²)ᵀ σ_ρ⁴ to R. It is large while a young landmark's depth is
+  // uncertain and the camera has moved from its anchor, and vanishes as the depth converges.
+  Eigen::Matrix2d R_depth = Eigen::Matrix2d::Zero();
   Eigen::Matrix2d S = Eigen::Matrix2d::Identity();
   double depth = 0.0;  // h_S.z / |h_S| direction cosine × distance when known (AHP: along-ray distance)
 
@@ -54,12 +68,16 @@ struct Observation {
 };
 
 /// Predicts an observation from a mean vector (the map's, or a RANSAC hypothesis): h, and if `with_jacobians`,
-/// the compressed H over [robot block, landmark block]. Sets projectable/visible (with `margin` px). Returns
+/// the compressed H over the involved blocks [robot, (sensor,) landmark]. Sets projectable/visible (with `margin` px). Returns
 /// `visible`. Allocation-free after the first call for a given observation.
 bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean, Observation& obs, double margin,
                          bool with_jacobians);
 
-/// S = H P Hᵀ + R for a predicted observation (R = sigma² I).
-void compute_innovation_covariance(const filter::State& state, Observation& obs, double sigma);
+/// The measurement noise of a predicted observation: sigma² I, plus R_depth when `second_order` is set.
+Eigen::Matrix2d measurement_noise(const Observation& obs, double sigma, bool second_order);
+
+/// S = H P Hᵀ + R for a predicted observation, R = measurement_noise(obs, sigma, second_order).
+void compute_innovation_covariance(const filter::State& state, Observation& obs, double sigma,
+                                   bool second_order = false);
 
 }  // namespace rtslam::slam

@@ -68,7 +68,7 @@ bool ConstantVelocityRobot::predict_to(TimeNs t) {
   state.mean(block_) = x_tmp_;
   if (state.nullspace_dim() > 0) {
     nullspace(x_tmp_, N_);
-    state.predict_constrained(block_, F_, Q_, N_);
+    state.predict_constrained(block_, F_, Q_, N_, 3, 3);  // the attitude-error columns
   } else {
     state.predict(block_, F_, Q_);
   }
@@ -171,7 +171,7 @@ bool InertialRobot::predict_to(TimeNs t) {
   state.mean(block_) = x_;
   if (state.nullspace_dim() > 0) {
     nullspace(x_, N_);
-    state.predict_constrained(block_, Phi_, Qacc_, N_);
+    state.predict_constrained(block_, Phi_, Qacc_, N_, models::InertialIndex::kDth, 3);  // attitude columns
   } else {
     state.predict(block_, Phi_, Qacc_);
   }

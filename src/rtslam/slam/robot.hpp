@@ -26,6 +26,7 @@ class Robot {
   const std::string& name() const { return name_; }
   filter::BlockId block() const { return block_; }
   Map& map() const { return *map_; }
+  bool in_map() const { return map_ != nullptr; }
   TimeNs time() const { return time_; }
 
   /// T_WR from a mean vector (the map's, or a hypothesis of one-point RANSAC).
@@ -37,7 +38,8 @@ class Robot {
   /// The block's rows (tangent × 6) of the directions no exteroceptive measurement can observe, at the block mean
   /// x: a global translation t and rotation φ of the world, [t φ] (filter observability constraints). For a pose
   /// [p q ...] in W: δp = t − [p]× φ, δθ = R_WRᵀ φ; vectors v in W rotate (δv = −[v]× φ); body-frame states do
-  /// not move.
+  /// not move. Constrained predictions adjust only the transition's attitude-error columns (tangent 3..5), where
+  /// the linearization point enters.
   virtual void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const = 0;
   static constexpr int kNullspaceDim = 6;
 

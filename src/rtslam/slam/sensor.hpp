@@ -1,11 +1,14 @@
 #pragma once
-// Sensors hang off their robot by T_RS (fixed here; estimating it as a map block is a later extension).
-// A point sensor projects a landmark's homogeneous direction h_S (in S) to a measurement.
+// Sensors hang off their robot by T_RS: fixed (the calibration), or estimated as a block of the map, [p_RS q_RS]
+// with tangent [δp δθ] (the paper's "sensors belong to the map": camera–IMU extrinsics refined online). A point
+// sensor projects a landmark's homogeneous direction h_S (in S) to a measurement.
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <Eigen/Core>
 
+#include "rtslam/filter/state.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/slam/fwd.hpp"
@@ -21,9 +24,21 @@ class Sensor {
   int id() const { return id_; }
   const std::string& name() const { return name_; }
   Robot& robot() const { return *robot_; }
+  /// The calibrated (prior) T_RS.
   const math::Pose& T_RS() const { return T_RS_; }
-  /// T_WS = T_WR T_RS for the robot pose in `mean`; J_TWS_TWR (6x6, [δp δθ]) if requested.
-  math::Pose pose_in_world(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 6>* J_TWS_TWR = nullptr) const;
+  /// T_RS in `mean` when estimated, else the calibration.
+  math::Pose T_RS(const Eigen::VectorXd& mean) const;
+  /// T_WS = T_WR T_RS for the robot pose (and the extrinsics, when estimated) in `mean`; J_TWS_TWR and J_TWS_TRS
+  /// (6x6, [δp δθ]) if requested (J_TWS_TRS only for an estimated T_RS).
+  math::Pose pose_in_world(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 6>* J_TWS_TWR = nullptr,
+                           Eigen::Matrix<double, 6, 6>* J_TWS_TRS = nullptr) const;
+
+  /// Asks for T_RS to be estimated, starting from the calibration with this [δp δθ] prior covariance. Must be
+  /// called before the robot joins a map (the block is created then).
+  void estimate_extrinsics(const Eigen::Matrix<double, 6, 6>& prior_cov);
+  /// The extrinsics block, or filter::kNoBlock when T_RS is fixed.
+  filter::BlockId block() const { return block_; }
+  static filter::BlockLayout extrinsics_layout();
 
   /// Measurement size (2 for a camera).
   virtual int measurement_size() const = 0;
@@ -38,6 +53,8 @@ class Sensor {
   DataManager* data_manager() const { return data_manager_.get(); }
   void set_data_manager(std::unique_ptr<DataManager> dm);
 
+  /// Called when the sensor joins its robot and again when the robot joins a map (the extrinsics block, if
+  /// requested, is created then).
   void attach(Robot& robot, int id);
 
  protected:
@@ -48,6 +65,8 @@ class Sensor {
   std::string name_;
   Robot* robot_ = nullptr;
   math::Pose T_RS_;
+  std::optional<Eigen::Matrix<double, 6, 6>> extrinsics_prior_;
+  filter::BlockId block_ = filter::kNoBlock;
   std::unique_ptr<DataManager> data_manager_;
 };
 

@@ -45,6 +45,7 @@ void ActiveSearchOptions::validate() const {
 ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   ActiveSearchOptions o;
   map.get("sigma_px", o.sigma_px);
+  map.get("second_order_depth", o.second_order_depth);
   map.get("n_sigma", o.n_sigma);
   map.get("max_updates", o.max_updates);
   map.get("max_updates_ransac", o.max_updates_ransac);
@@ -102,8 +103,8 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
   best_support_z_.reserve(512);
   report_.reserve(512);
   batch_.reserve(kMaxBatch);
-  batch_blocks_.reserve(kMaxBatch + 1);
-  batch_H_.resize(2 * kMaxBatch, 32 + slam::kMaxLandmarkTangent * kMaxBatch);
+  batch_blocks_.reserve(kMaxBatch + 2);
+  batch_H_.resize(2 * kMaxBatch, 64 + slam::kMaxLandmarkTangent * kMaxBatch);
   batch_y_.resize(2 * kMaxBatch);
   batch_R_.resize(2 * kMaxBatch, 2 * kMaxBatch);
 }
@@ -163,18 +164,18 @@ bool ActiveSearchDataManager::correct_batch(slam::Map& map, const std::vector<Ca
   filter::State& state = map.state();
   int k = 0;
   int cols = 0;
-  int tr = 0;
+  int tr = 0;  // columns of the blocks shared by the batch (robot, and the sensor's extrinsics when estimated)
   batch_blocks_.clear();
   for (Candidate* c : batch) {
     slam::Observation& o = *c->obs;
     if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true) || !o.projectable) continue;
     if (batch_blocks_.empty()) {
-      batch_blocks_.push_back(o.blocks[0]);
-      tr = state.block(o.blocks[0]).tangent_size();
+      for (const filter::BlockId b : o.sensor_blocks()) batch_blocks_.push_back(b);
+      tr = static_cast<int>(o.H.cols()) - state.block(o.landmark_block()).tangent_size();
       cols = tr;
     }
-    batch_blocks_.push_back(o.blocks[1]);
-    cols += state.block(o.blocks[1]).tangent_size();
+    batch_blocks_.push_back(o.landmark_block());
+    cols += state.block(o.landmark_block()).tangent_size();
     ++k;
   }
   if (k == 0) return false;
@@ -186,7 +187,7 @@ bool ActiveSearchDataManager::correct_batch(slam::Map& map, const std::vector<Ca
   for (Candidate* c : batch) {
     const slam::Observation& o = *c->obs;
     if (!o.projectable) continue;
-    const int tl = state.block(o.blocks[1]).tangent_size();
+    const int tl = state.block(o.landmark_block()).tangent_size();
     H.block(row, 0, 2, tr) = o.H.leftCols(tr);
     H.block(row, col, 2, tl) = o.H.rightCols(tl);
     batch_y_.segment<2>(row) = c->z - o.h;
@@ -194,8 +195,13 @@ bool ActiveSearchDataManager::correct_batch(slam::Map& map, const std::vector<Ca
     col += tl;
   }
   auto R = batch_R_.topLeftCorner(m, m);
-  R.setIdentity();
-  R *= opt_.sigma_px * opt_.sigma_px;
+  R.setZero();
+  row = 0;
+  for (Candidate* c : batch) {
+    if (!c->obs->projectable) continue;
+    R.block<2, 2>(row, row) = slam::measurement_noise(*c->obs, opt_.sigma_px, opt_.second_order_depth);
+    row += 2;
+  }
   return state.correct(batch_blocks_, H, batch_y_.head(m), R).ok();
 }
 
@@ -218,7 +224,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     slam::Observation* o = l->observation_of(sensor);
     if (o == nullptr) continue;
     if (!slam::predict_observation(state, state.mean_vector(), *o, opt_.margin_px, true)) continue;
-    slam::compute_innovation_covariance(state, *o, opt_.sigma_px);
+    slam::compute_innovation_covariance(state, *o, opt_.sigma_px, opt_.second_order_depth);
     o->counters.last_visible_frame = frame;
     grid_.occupy(o->h);
     const vision::Roi box = vision::SearchEllipse::from_covariance(o->h, o->S, opt_.n_sigma).bounding_box();
@@ -291,7 +297,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       // The one-point state: mean only. (Observations still hold H and S of the first prediction.)
       const slam::Observation& oi = *ci.obs;
       const Eigen::Vector2d y = ci.z - ci.h0;
-      if (!state.mean_correction(oi.blocks, oi.H, y, oi.R, dx_).ok()) {
+      if (!state.mean_correction(oi.involved(), oi.H, y, oi.R, dx_).ok()) {
         continue;
       }
       state.boxplus_all(state.mean_vector(), dx_, hyp_mean_);
@@ -344,7 +350,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       if (c.done) continue;
       slam::Observation& o = *c.obs;
       if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true)) continue;
-      slam::compute_innovation_covariance(state, o, opt_.sigma_px);
+      slam::compute_innovation_covariance(state, o, opt_.sigma_px, opt_.second_order_depth);
       const vision::SearchEllipse region = vision::SearchEllipse::from_covariance(o.h, o.S, opt_.n_sigma);
       const vision::Roi box = region.bounding_box();
       if (static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) continue;

@@ -57,6 +57,7 @@ const PointDescriptor* point_descriptor(const slam::Landmark& lmk);
 
 struct ActiveSearchOptions {
   double sigma_px = 1.0;              // measurement noise (px), RT-SLAM PIX_NOISE
+  bool second_order_depth = true;     // add the inverse-depth linearization term to R (slam/observation.hpp)
   double n_sigma = 3.0;               // search ellipse and gate (RT-SLAM MAHALANOBIS_TH)
   int max_updates = 25;               // RT-SLAM N_UPDATES_TOTAL
   int max_updates_ransac = 22;        // RT-SLAM N_UPDATES_RANSAC (at most 32: one batched correction)
@@ -72,7 +73,7 @@ struct ActiveSearchOptions {
   vision::HarrisOptions harris;
   vision::ZnccOptions zncc;           // MATCH_TH 0.90, patch 15
   void validate() const;
-  /// Keys: sigma_px, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_low_innov_px,
+  /// Keys: sigma_px, second_order_depth, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_low_innov_px,
   /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min,
   /// grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors; validates.
   static ActiveSearchOptions from_yaml(YamlMap& map);

@@ -30,8 +30,8 @@ KnownAssociationDataManager::KnownAssociationDataManager(KnownAssociationOptions
   candidates_.reserve(512);
   const int per_round = (opt_.max_updates + opt_.gain_recomputations - 1) / opt_.gain_recomputations;
   batch_.reserve(static_cast<size_t>(per_round));
-  batch_blocks_.reserve(static_cast<size_t>(per_round) + 1);
-  batch_H_.resize(2 * per_round, 32 + slam::kMaxLandmarkTangent * per_round);
+  batch_blocks_.reserve(static_cast<size_t>(per_round) + 2);
+  batch_H_.resize(2 * per_round, 64 + slam::kMaxLandmarkTangent * per_round);
   batch_y_.resize(2 * per_round);
   batch_R_.resize(2 * per_round, 2 * per_round);
 }
@@ -115,20 +115,20 @@ void KnownAssociationDataManager::process(slam::Map& map, slam::Sensor& sensor, 
     if (batch_.empty()) continue;
     // One batched correction: compressed H over [robot, landmark_1, ..., landmark_K].
     const int m = 2 * static_cast<int>(batch_.size());
-    const filter::BlockId robot_block = batch_.front()->blocks[0];
-    const int tr = state.block(robot_block).tangent_size();
-    batch_blocks_.assign(1, robot_block);
+    const slam::Observation& first = *batch_.front();
+    const int tr = static_cast<int>(first.H.cols()) - state.block(first.landmark_block()).tangent_size();
+    batch_blocks_.assign(first.sensor_blocks().begin(), first.sensor_blocks().end());
     int cols = tr;
     for (const slam::Observation* o : batch_) {
-      batch_blocks_.push_back(o->blocks[1]);
-      cols += state.block(o->blocks[1]).tangent_size();
+      batch_blocks_.push_back(o->landmark_block());
+      cols += state.block(o->landmark_block()).tangent_size();
     }
     auto H = batch_H_.topLeftCorner(m, cols);
     H.setZero();
     int col = tr;
     for (size_t k = 0; k < batch_.size(); ++k) {
       const slam::Observation& o = *batch_[k];
-      const int tl = state.block(o.blocks[1]).tangent_size();
+      const int tl = state.block(o.landmark_block()).tangent_size();
       H.block(2 * static_cast<int>(k), 0, 2, tr) = o.H.leftCols(tr);
       H.block(2 * static_cast<int>(k), col, 2, tl) = o.H.rightCols(tl);
       batch_y_.segment<2>(2 * static_cast<int>(k)) = o.y;

@@ -19,6 +19,7 @@
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
 #include "rtslam/io/dataset.hpp"
+#include "rtslam/pipeline/default_config.hpp"
 #include "rtslam/pipeline/demo_config.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
 #include "rtslam/pipeline/point_demo.hpp"
@@ -119,12 +120,14 @@ void run_demo(const RunOptions& ro) {
       ev.sim3_scale, ro.out);
 }
 
-// Monocular image SLAM on a dataset or the simulator (src/rtslam/pipeline/image_slam.hpp): camera 0 of the rig,
-// IMU ignored.
+// Monocular or inertial-monocular image SLAM on a dataset or the simulator (src/rtslam/pipeline/image_slam.hpp):
+// camera 0 of the rig, the IMU when the configuration's robot is inertial. Without --config, simulated runs use the
+// built-in config/sim_mono.yaml and dataset runs the options' defaults.
 void run_dataset(const RunOptions& ro) {
-  pipeline::ImageSlamOptions o =
-      ro.config.empty() ? pipeline::ImageSlamOptions{} : pipeline::load_image_slam_config(ro.config);
   const bool simulated = ro.dataset.empty() || ro.dataset.rfind("sim:", 0) == 0;
+  pipeline::ImageSlamOptions o = !ro.config.empty() ? pipeline::load_image_slam_config(ro.config)
+                                 : simulated        ? pipeline::default_sim_options()
+                                                    : pipeline::ImageSlamOptions{};
   if (!ro.dataset.empty() && simulated) o.sim_preset = ro.dataset.substr(4);
   if (ro.seed) o.seed = *ro.seed;
   if (ro.duration_s) {

@@ -12,6 +12,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/io/dataset.hpp"
+#include "rtslam/pipeline/default_config.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
 
 namespace rtslam::pipeline {
@@ -137,6 +138,13 @@ TEST(ImageSlamConfig, PresetRoundTripsAndRejectsUnknownKeys) {
   ImageSlamOptions bad;
   EXPECT_THROW(apply_image_slam_config(YAML::Load("{search: {sigma_pix: 2}}"), "bad.yaml", bad), ConfigError);
   EXPECT_THROW(apply_image_slam_config(YAML::Load("{map_manager: {policy: forever}}"), "bad.yaml", bad), ConfigError);
+}
+
+// `rtslam run` on the simulator without --config uses config/sim_mono.yaml, compiled in.
+TEST(ImageSlamConfig, BuiltInSimulatorDefaultIsTheSimMonoPreset) {
+  const ImageSlamOptions file = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/sim_mono.yaml");
+  EXPECT_EQ(YAML::Dump(to_yaml(default_sim_options())), YAML::Dump(to_yaml(file)));
+  EXPECT_NE(YAML::Dump(to_yaml(default_sim_options())), YAML::Dump(to_yaml(ImageSlamOptions{})));
 }
 
 }  // namespace

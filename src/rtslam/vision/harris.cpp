@@ -11,6 +11,8 @@
 
 #if defined(__x86_64__)
 #include <immintrin.h>
+
+#include "rtslam/vision/simd_prefix.hpp"
 #endif
 
 namespace rtslam::vision {
@@ -184,15 +186,14 @@ std::uint32_t trace_row_scalar(const ResponseRun& r) { return trace_row_from(r, 
 
 #if defined(__x86_64__)
 
+using detail::last_epu32;
+using detail::prefix4_epu32;
+using detail::prefix8_epu32;
+
 // SSE2 kernels. Products are exact in int32 (|D| <= 255). Prefix sums are built in registers without the running
 // row sum, which is added afterwards, so consecutive steps depend on each other through one add per plane. Products
 // enter as pair sums: pmaddwd of the int16 derivatives gives d[2i] e[2i] + d[2i + 1] e[2i + 1], whose prefixes are
 // the row prefixes at the odd pixels; an even pixel's prefix is its odd neighbour's minus that neighbour's product.
-inline __m128i prefix4_epu32(__m128i v) {
-  v = _mm_add_epi32(v, _mm_slli_si128(v, 4));
-  return _mm_add_epi32(v, _mm_slli_si128(v, 8));
-}
-inline __m128i last_epu32(__m128i v) { return _mm_shuffle_epi32(v, _MM_SHUFFLE(3, 3, 3, 3)); }
 
 // One plane, 8 pixels: d, e are the int16 derivatives (product d e), d_odd is d with its even lanes zeroed.
 // cur[0..8) = cur[-ts..8-ts) + carry + prefix; the carry becomes the row sum so far.
@@ -309,14 +310,7 @@ std::uint32_t trace_row_sse2(const ResponseRun& r) {
 }
 
 // AVX2 kernels: the same computations, 8 int32 or 4 double lanes.
-#define RTSLAM_AVX2 __attribute__((target("avx2")))
 
-RTSLAM_AVX2 inline __m256i prefix8_epu32(__m256i v) {
-  v = _mm256_add_epi32(v, _mm256_slli_si256(v, 4));
-  v = _mm256_add_epi32(v, _mm256_slli_si256(v, 8));
-  const __m256i t = _mm256_shuffle_epi32(v, _MM_SHUFFLE(3, 3, 3, 3));
-  return _mm256_add_epi32(v, _mm256_permute2x128_si256(t, t, 0x08));
-}
 
 // One plane, 16 pixels (int16 lanes), as products8_store.
 RTSLAM_AVX2 inline void products16_store(__m256i d, __m256i d_odd, __m256i e, std::uint32_t* cur, std::ptrdiff_t ts,

@@ -6,6 +6,8 @@
 
 #if defined(__x86_64__)
 #include <immintrin.h>
+
+#include "rtslam/vision/simd_prefix.hpp"
 #endif
 
 namespace rtslam::vision {
@@ -49,6 +51,10 @@ void row_sum_scalar(const std::uint8_t* src, int w, const std::uint32_t* s_prev,
 
 #if defined(__x86_64__)
 
+using detail::last_epu32;
+using detail::prefix4_epu32;
+using detail::prefix8_epu32;
+
 // SSE2, 16 pixels per step. Row prefixes are built in registers without the running row sum (the carry), which is
 // added afterwards: the only dependency between steps is one add per table.
 //  - sums: 16-bit prefixes first (at most 16 * 255), widened to 32 bits;
@@ -61,15 +67,10 @@ inline __m128i prefix8_epu16(__m128i v) {
   v = _mm_add_epi16(v, _mm_slli_si128(v, 4));
   return _mm_add_epi16(v, _mm_slli_si128(v, 8));
 }
-inline __m128i prefix4_epu32(__m128i v) {
-  v = _mm_add_epi32(v, _mm_slli_si128(v, 4));
-  return _mm_add_epi32(v, _mm_slli_si128(v, 8));
-}
 inline __m128i last_epu16(__m128i v) {
   const __m128i t = _mm_shufflehi_epi16(v, _MM_SHUFFLE(3, 3, 3, 3));
   return _mm_unpackhi_epi64(t, t);
 }
-inline __m128i last_epu32(__m128i v) { return _mm_shuffle_epi32(v, _MM_SHUFFLE(3, 3, 3, 3)); }
 
 // t[0..4) = t_prev[0..4) + v.
 inline void store_row4(std::uint32_t* t, const std::uint32_t* t_prev, __m128i v) {
@@ -130,16 +131,7 @@ void row_sum_sse2(const std::uint8_t* src, int w, const std::uint32_t* s_prev, s
 }
 
 // AVX2, 16 pixels per step, the same scheme with 8 lanes.
-#define RTSLAM_AVX2 __attribute__((target("avx2")))
 
-// Prefix sums of 8 uint32 lanes: within each 128-bit half, then the low half's total added to the high half.
-RTSLAM_AVX2 inline __m256i prefix8_epu32(__m256i v) {
-  v = _mm256_add_epi32(v, _mm256_slli_si256(v, 4));
-  v = _mm256_add_epi32(v, _mm256_slli_si256(v, 8));
-  const __m256i t = _mm256_shuffle_epi32(v, _MM_SHUFFLE(3, 3, 3, 3));
-  return _mm256_add_epi32(v, _mm256_permute2x128_si256(t, t, 0x08));
-}
-RTSLAM_AVX2 inline __m256i last_epu32(__m256i v) { return _mm256_permutevar8x32_epi32(v, _mm256_set1_epi32(7)); }
 RTSLAM_AVX2 inline void store_row8(std::uint32_t* t, const std::uint32_t* t_prev, __m256i v) {
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(t),
                       _mm256_add_epi32(v, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t_prev))));

@@ -6,6 +6,7 @@
 #include <benchmark/benchmark.h>
 
 #include "rtslam/core/random.hpp"
+#include "rtslam/filter/kernels.hpp"
 #include "rtslam/filter/state.hpp"
 
 namespace {
@@ -72,5 +73,110 @@ BENCHMARK(BM_CorrectBatch)
     ->Args({500, 8})
     ->Args({500, 25})
     ->Unit(benchmark::kMicrosecond);
+
+// The covariance as a long run leaves it: a robot (18 rows) and its camera extrinsics (6), then landmarks
+// initialized as inverse-depth points (7 rows), some removed and some reparametrized into Euclidean points (3 rows)
+// in the holes the others left; about 500 active rows in some 30 runs, as in the high-dynamic sequence.
+struct FragmentedFixture {
+  State state;
+  BlockId robot;
+  std::vector<BlockId> landmarks;
+  FragmentedFixture() : state(rtslam::filter::StateOptions{.tangent_capacity = 600}) {
+    rtslam::Rng rng(7);
+    robot = *state.add_block(BlockLayout::euclidean(24), VectorXd::Zero(24), MatrixXd::Identity(24, 24));
+    const BlockId parents[1] = {robot};
+    auto add = [&](int t) {
+      MatrixXd J = 0.1 * MatrixXd::Ones(t, 24);
+      J.leftCols(std::min(t, 24)).diagonal().setOnes();
+      const auto id = state.add_block(BlockLayout::euclidean(t), VectorXd::Zero(t),
+                                      parents, J, 0.1 * MatrixXd::Identity(t, t));
+      if (id) landmarks.push_back(*id);
+    };
+    for (int step = 0; step < 3000; ++step) {
+      if (state.tangent_used() + 7 <= 500) {
+        add(7);
+      } else {
+        const auto k = std::uniform_int_distribution<size_t>(0, landmarks.size() - 1)(rng);
+        const bool ahp = state.block(landmarks[k]).tangent_size() == 7;
+        state.remove_block(landmarks[k]);
+        landmarks.erase(landmarks.begin() + static_cast<std::ptrdiff_t>(k));
+        if (ahp && std::uniform_int_distribution<int>(0, 2)(rng) > 0) add(3);
+      }
+    }
+  }
+};
+
+// A batched correction of k landmarks of the fragmented state (robot pose columns + each landmark's own).
+struct Batch {
+  std::vector<BlockId> blocks;
+  MatrixXd H;
+  VectorXd y;
+  MatrixXd R;
+  Batch(const FragmentedFixture& f, int first, int k) {
+    blocks = {f.robot};
+    int cols = 24;
+    for (int i = 0; i < k; ++i) {
+      blocks.push_back(f.landmarks[static_cast<size_t>(first + 3 * i)]);
+      cols += f.state.block(blocks.back()).tangent_size();
+    }
+    H = MatrixXd::Zero(2 * k, cols);
+    int col = 24;
+    for (int i = 0; i < k; ++i) {
+      const int t = f.state.block(blocks[static_cast<size_t>(i + 1)]).tangent_size();
+      H.block(2 * i, 0, 2, 6).setConstant(0.1);  // the robot pose's columns only, as a camera sees it
+      H.block(2 * i, col, 2, t).setConstant(0.2);
+      H(2 * i, col) = 1.0;
+      H(2 * i + 1, col + 1) = 1.0;
+      col += t;
+    }
+    y = VectorXd::Constant(2 * k, 1e-3);
+    R = 1e6 * MatrixXd::Identity(2 * k, 2 * k);  // weak: the state barely changes across iterations
+  }
+};
+
+// One correction of k landmarks, then the covariance brought up to date (as the next prediction does).
+void BM_CorrectFragmented(benchmark::State& st) {
+  const auto isa = rtslam::filter::set_kernel_isa(static_cast<rtslam::filter::KernelIsa>(st.range(1)));
+  FragmentedFixture f;
+  const Batch b(f, 0, static_cast<int>(st.range(0)));
+  for (auto _ : st) {
+    const auto res = f.state.correct(b.blocks, b.H, b.y, b.R);
+    f.state.apply_pending();
+    benchmark::DoNotOptimize(res);
+  }
+  st.counters["rows"] = f.state.tangent_used();
+  st.counters["runs"] = static_cast<double>(f.state.active_runs().size());
+  st.SetLabel(rtslam::filter::to_string(isa));
+  rtslam::filter::set_kernel_isa(rtslam::filter::best_kernel_isa());
+}
+BENCHMARK(BM_CorrectFragmented)
+    ->Args({1, 1})
+    ->Args({22, 1})
+    ->Args({1, 0})
+    ->Args({22, 0})
+    ->Unit(benchmark::kMicrosecond);
+
+// The corrections of one image of the high-dynamic sequence: the one-point RANSAC support set (22 landmarks), three
+// rounds of active search (one landmark each, its innovation covariance computed first), then the covariance brought
+// up to date (as the next prediction does).
+void BM_FrameCorrections(benchmark::State& st) {
+  const auto isa = rtslam::filter::set_kernel_isa(static_cast<rtslam::filter::KernelIsa>(st.range(0)));
+  FragmentedFixture f;
+  const Batch ransac(f, 0, 22);
+  const Batch r1(f, 1, 1), r2(f, 2, 1), r3(f, 4, 1);
+  MatrixXd S(2, 2);
+  for (auto _ : st) {
+    auto res = f.state.correct(ransac.blocks, ransac.H, ransac.y, ransac.R);
+    for (const Batch* r : {&r1, &r2, &r3}) {
+      f.state.innovation_covariance(r->blocks, r->H, r->R, S);
+      res = f.state.correct(r->blocks, r->H, r->y, r->R);
+    }
+    f.state.apply_pending();
+    benchmark::DoNotOptimize(res);
+  }
+  st.SetLabel(rtslam::filter::to_string(isa));
+  rtslam::filter::set_kernel_isa(rtslam::filter::best_kernel_isa());
+}
+BENCHMARK(BM_FrameCorrections)->Arg(1)->Arg(0)->Unit(benchmark::kMicrosecond);
 
 }  // namespace

@@ -1,10 +1,13 @@
 #include "rtslam/filter/state.hpp"
 
+#include <cstring>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "rtslam/core/random.hpp"
+#include "rtslam/filter/kernels.hpp"
 #include "rtslam/math/rotation.hpp"
 
 namespace rtslam::filter {
@@ -457,6 +460,137 @@ TEST(StateObservabilityConstraints, ConstrainedPredictionChangesOnlyTheGivenColu
   EXPECT_LT((MatrixXd(s.cov(*r)) - (Fs * P_rr * Fs.transpose() + Q)).norm(), 1e-12);
   EXPECT_LT((MatrixXd(s.cov(*r, *l)) - Fs * P_rl).norm(), 1e-12);
   EXPECT_EQ(MatrixXd(s.nullspace(*r)), W);
+}
+
+}  // namespace
+}  // namespace rtslam::filter
+
+namespace rtslam::filter {
+namespace {
+
+// Blocks {4, 3, 7, 3, 5, 3, 7, 2} with a full correlated covariance, then blocks 1, 4 and 6 removed: the remaining
+// five blocks lie in three runs of active rows. Returns the dense mirror of the remaining blocks.
+DenseMirror fragmented_state(State& s, Rng& rng) {
+  DenseMirror d = fill_linear_state(s, {4, 3, 7, 3, 5, 3, 7, 2}, rng);
+  for (size_t k : {1, 4, 6}) s.remove_block(d.ids[k]);
+  DenseMirror r;
+  for (size_t k : {0, 2, 3, 5, 7}) {
+    r.ids.push_back(d.ids[k]);
+    r.sizes.push_back(d.sizes[k]);
+  }
+  const int n = r.offset_of(r.ids.size());
+  r.x = VectorXd(n);
+  r.P = MatrixXd(n, n);
+  for (size_t a = 0; a < r.ids.size(); ++a) {
+    r.x.segment(r.offset_of(a), r.sizes[a]) = s.mean(r.ids[a]);
+    for (size_t b = 0; b < r.ids.size(); ++b)
+      r.P.block(r.offset_of(a), r.offset_of(b), r.sizes[a], r.sizes[b]) = s.cov(r.ids[a], r.ids[b]);
+  }
+  return r;
+}
+
+// A measurement of blocks `which` of the mirror: compressed H (rows × Σ sizes) and the dense one.
+struct Measurement {
+  std::vector<BlockId> blocks;
+  MatrixXd Hc, Hf, R;
+  VectorXd y;
+};
+
+Measurement random_measurement(const DenseMirror& d, const std::vector<size_t>& which, int rows, Rng& rng) {
+  Measurement z;
+  int cols = 0;
+  for (size_t k : which) cols += d.sizes[k];
+  z.Hc = random_matrix(rows, cols, rng);
+  z.Hf = MatrixXd::Zero(rows, static_cast<int>(d.x.size()));
+  int c = 0;
+  for (size_t k : which) {
+    z.blocks.push_back(d.ids[k]);
+    z.Hf.block(0, d.offset_of(k), rows, d.sizes[k]) = z.Hc.middleCols(c, d.sizes[k]);
+    c += d.sizes[k];
+  }
+  z.R = random_spd(rows, rng, 0.05);
+  z.y = random_matrix(rows, 1, rng);
+  return z;
+}
+
+TEST(State, DeferredDowndateIsSeenByInnovationCovarianceAndMeanCorrection) {
+  // Corrections leave the downdate outside each block's own covariance pending; the State's own reads in between
+  // (innovation covariance, one-point mean correction, the next correction's P Hᵀ) must see the corrected
+  // covariance, and applying it must give the closed-form one.
+  Rng rng(31);
+  State s;
+  DenseMirror d = fragmented_state(s, rng);
+  for (int step = 0; step < 6; ++step) {
+    const Measurement z = random_measurement(d, {static_cast<size_t>(step % 5), static_cast<size_t>((step + 2) % 5)},
+                                             2 + step % 3, rng);
+    const MatrixXd S_expected = z.Hf * d.P * z.Hf.transpose() + z.R;
+    MatrixXd S(z.y.size(), z.y.size());
+    s.innovation_covariance(z.blocks, z.Hc, z.R, S);
+    EXPECT_LT((S - S_expected).norm(), 1e-10 * S_expected.norm()) << "step " << step;
+    VectorXd dx(s.tangent_capacity());
+    ASSERT_TRUE(s.mean_correction(z.blocks, z.Hc, z.y, z.R, dx).ok());
+    const VectorXd dx_expected = d.P * z.Hf.transpose() * S_expected.ldlt().solve(z.y);
+    for (size_t a = 0; a < d.ids.size(); ++a) {
+      EXPECT_LT((dx.segment(s.block(d.ids[a]).tangent_offset, d.sizes[a]) -
+                 dx_expected.segment(d.offset_of(a), d.sizes[a])).norm(), 1e-10)
+          << "step " << step << " block " << a;
+    }
+    ASSERT_TRUE(s.correct(z.blocks, z.Hc, z.y, z.R).ok());
+    d.x += dx_expected;
+    d.P -= d.P * z.Hf.transpose() * S_expected.ldlt().solve(z.Hf * d.P);
+    EXPECT_GT(s.pending_rows(), 0);
+    // Each block's own covariance is current without applying the rest.
+    for (size_t a = 0; a < d.ids.size(); ++a) {
+      EXPECT_LT((MatrixXd(s.cov(d.ids[a])) - d.P.block(d.offset_of(a), d.offset_of(a), d.sizes[a], d.sizes[a])).norm(),
+                1e-10);
+    }
+  }
+  EXPECT_GT(s.pending_rows(), 10);  // nothing above applied the pending downdate
+  expect_matches_dense(s, d, 1e-9);
+  EXPECT_EQ(s.pending_rows(), 0);
+  for (BlockId a : d.ids)
+    for (BlockId b : d.ids) EXPECT_EQ(MatrixXd(s.cov(a, b)), MatrixXd(s.cov(b, a)).transpose());
+}
+
+TEST(State, PendingDowndateBeyondItsCapacityIsAppliedFirst) {
+  Rng rng(32);
+  State s(StateOptions{.tangent_capacity = 60, .max_measurement_rows = 4});
+  DenseMirror d = fragmented_state(s, rng);
+  for (int step = 0; step < 7; ++step) {  // 7 × 3 rows > the pending capacity of 8 rows
+    const Measurement z = random_measurement(d, {static_cast<size_t>(step % 5)}, 3, rng);
+    ASSERT_TRUE(s.correct(z.blocks, z.Hc, z.y, z.R).ok());
+    EXPECT_LE(s.pending_rows(), s.pending_capacity());
+    const MatrixXd S = z.Hf * d.P * z.Hf.transpose() + z.R;
+    d.x += d.P * z.Hf.transpose() * S.ldlt().solve(z.y);
+    d.P -= d.P * z.Hf.transpose() * S.ldlt().solve(z.Hf * d.P);
+  }
+  expect_matches_dense(s, d, 1e-9);
+}
+
+TEST(State, GenericAndAvx2KernelsGiveBitIdenticalStates) {
+  // The kernels' instruction sets perform the same operations in the same order (filter/kernels.hpp).
+  auto run = [](KernelIsa isa) {
+    set_kernel_isa(isa);
+    Rng rng(33);
+    State s;
+    DenseMirror d = fragmented_state(s, rng);
+    for (int step = 0; step < 5; ++step) {
+      const Measurement z = random_measurement(d, {0, static_cast<size_t>(1 + step % 4)}, 2 + 2 * step, rng);
+      MatrixXd S(z.y.size(), z.y.size());
+      s.innovation_covariance(z.blocks, z.Hc, z.R, S);
+      EXPECT_TRUE(s.correct(z.blocks, z.Hc, z.y, z.R).ok());
+      const MatrixXd F = MatrixXd::Identity(4, 4) + 0.1 * random_matrix(4, 4, rng);
+      if (step == 2) s.predict(d.ids[0], F, 0.01 * MatrixXd::Identity(4, 4));
+    }
+    const MatrixXd P = s.covariance();
+    set_kernel_isa(best_kernel_isa());
+    return std::make_pair(s.mean_vector(), P);
+  };
+  const auto generic = run(KernelIsa::generic);
+  if (best_kernel_isa() != KernelIsa::avx2) GTEST_SKIP() << "no AVX2 on this CPU";
+  const auto avx2 = run(KernelIsa::avx2);
+  EXPECT_EQ(std::memcmp(generic.first.data(), avx2.first.data(), sizeof(double) * generic.first.size()), 0);
+  EXPECT_EQ(std::memcmp(generic.second.data(), avx2.second.data(), sizeof(double) * generic.second.size()), 0);
 }
 
 }  // namespace

@@ -1,11 +1,14 @@
 #include "rtslam/filter/state.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <utility>
 
 #include <Eigen/QR>
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/filter/kernels.hpp"
 
 namespace rtslam::filter {
 
@@ -37,6 +40,11 @@ using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 16,
 int ambient_capacity_of(const StateOptions& o) {
   return o.ambient_capacity > 0 ? o.ambient_capacity : o.tangent_capacity * 4 / 3 + 16;
 }
+// Measurement rows the pending downdate holds: two full batched corrections.
+int pending_capacity_of(const StateOptions& o) { return 2 * o.max_measurement_rows; }
+// Non-zero H columns up to which an innovation covariance reads the covariance through the pending downdate; a
+// larger one applies it first.
+constexpr int kMaxLazyColumns = 64;
 }  // namespace
 
 State::State(StateOptions options)
@@ -45,17 +53,33 @@ State::State(StateOptions options)
       P_(MatrixXd::Zero(options.tangent_capacity, options.tangent_capacity)),
       ambient_alloc_(ambient_capacity_of(options)),
       tangent_alloc_(options.tangent_capacity),
-      PHt_(MatrixXd::Zero(options.tangent_capacity, options.max_measurement_rows)),
+      pending_capacity_(pending_capacity_of(options)),
+      U_(VectorXd::Zero(kernels::packed_size(options.tangent_capacity, pending_capacity_of(options)))),
+      W_(VectorXd::Zero(kernels::packed_size(options.tangent_capacity, options.max_measurement_rows))),
       S_(MatrixXd::Zero(options.max_measurement_rows, options.max_measurement_rows)),
       z_(VectorXd::Zero(options.max_measurement_rows)),
       dx_(VectorXd::Zero(options.tangent_capacity)),
       HP_(MatrixXd::Zero(options.max_measurement_rows, options.tangent_capacity)),
+      G_(MatrixXd::Zero(pending_capacity_of(options), options.max_measurement_rows)),
+      Gb_(MatrixXd::Zero(pending_capacity_of(options), options.max_measurement_rows)),
+      Pnz_(MatrixXd::Zero(kMaxLazyColumns, kMaxLazyColumns)),
+      diag_save_(VectorXd::Zero(static_cast<std::int64_t>(options.tangent_capacity) * options.max_block_tangent)),
       tmp_(MatrixXd::Zero(options.max_block_tangent, options.tangent_capacity)),
       tmp_small_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)),
       F_oc_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)) {
   N_ = MatrixXd::Zero(options.tangent_capacity, options.nullspace_dim);
   blocks_.reserve(256);
   runs_.reserve(64);
+  spans_.reserve(256);
+  active_rows_.reserve(static_cast<size_t>(options.tangent_capacity));
+  packed_index_.assign(static_cast<size_t>(options.tangent_capacity), -1);
+  groups_.reserve(static_cast<size_t>(2 * (options.tangent_capacity / kernels::kPanelRows + 1)));
+  nz_cols_.resize(static_cast<size_t>(options.max_block_tangent));
+  pht_row_.resize(static_cast<size_t>(options.max_block_tangent));
+  nz_hcol_.resize(static_cast<size_t>(options.tangent_capacity));
+  nz_prow_.resize(static_cast<size_t>(options.tangent_capacity));
+  nz_packed_.resize(static_cast<size_t>(options.tangent_capacity));
+  nz_block_.resize(static_cast<size_t>(options.tangent_capacity));
 }
 
 bool State::can_allocate(const BlockLayout& layout) const {
@@ -88,6 +112,7 @@ std::optional<BlockId> State::add_block(const BlockLayout& layout, const Eigen::
                                         std::span<const BlockId> parents,
                                         const Eigen::Ref<const MatrixXd>& J_new_parents,
                                         const Eigen::Ref<const MatrixXd>& Q) {
+  apply_pending();  // reads the parents' rows and writes the new block's
   const int t = layout.tangent_size();
   const int k = total_tangent(parents);
   RTSLAM_CHECK(t <= options_.max_block_tangent, "block larger than max_block_tangent");
@@ -165,6 +190,7 @@ std::optional<BlockId> State::add_block(const BlockLayout& layout, const Eigen::
 
 void State::remove_block(BlockId id) {
   RTSLAM_CHECK(valid(id), fmt::format("remove_block: {} is not a live block", id));
+  apply_pending();  // the pending factor is laid out over the active rows, which change
   BlockInfo& b = blocks_[static_cast<size_t>(id)];
   ambient_alloc_.release(b.ambient_offset, b.ambient_size());
   tangent_alloc_.release(b.tangent_offset, b.tangent_size());
@@ -175,18 +201,44 @@ void State::remove_block(BlockId id) {
 }
 
 void State::rebuild_runs() {
-  std::vector<Run> spans;
-  spans.reserve(static_cast<size_t>(used_blocks_));
+  // Member workspaces: adding and removing blocks allocates nothing once they have grown to the block count.
+  spans_.clear();
   for (const BlockInfo& b : blocks_)
-    if (b.used) spans.push_back({b.tangent_offset, b.tangent_size()});
-  std::sort(spans.begin(), spans.end(), [](const Run& a, const Run& c) { return a.begin < c.begin; });
+    if (b.used) spans_.push_back({b.tangent_offset, b.tangent_size()});
+  std::sort(spans_.begin(), spans_.end(), [](const Run& a, const Run& c) { return a.begin < c.begin; });
   runs_.clear();
-  for (const Run& s : spans) {
+  for (const Run& s : spans_) {
     if (!runs_.empty() && runs_.back().begin + runs_.back().length == s.begin) {
       runs_.back().length += s.length;
     } else {
       runs_.push_back(s);
     }
+  }
+  std::fill(packed_index_.begin(), packed_index_.end(), -1);
+  active_rows_.clear();
+  for (const Run& r : runs_) {
+    for (int i = r.begin; i < r.begin + r.length; ++i) {
+      packed_index_[static_cast<size_t>(i)] = static_cast<int>(active_rows_.size());
+      active_rows_.push_back(i);
+    }
+  }
+  // Lane groups of whole panels (kernels.hpp): runs of consecutive covariance rows within each 4 packed rows.
+  const int n = static_cast<int>(active_rows_.size());
+  const int n_groups = (n + kernels::kPanelRows - 1) / kernels::kPanelRows * (kernels::kPanelRows / kernels::kGroupLanes);
+  groups_.clear();
+  for (int g = 0; g < n_groups; ++g) {
+    kernels::LaneGroup lg;
+    for (int l = 0; l < kernels::kGroupLanes; ++l) {
+      const int i = g * kernels::kGroupLanes + l;
+      if (i >= n) break;
+      const int row = active_rows_[static_cast<size_t>(i)];
+      if (lg.segments == 0 || active_rows_[static_cast<size_t>(i - 1)] != row - 1) {
+        lg.base[lg.segments] = row - l;
+        ++lg.segments;
+      }
+      lg.mask[lg.segments - 1] |= 1u << l;
+    }
+    groups_.push_back(lg);
   }
 }
 
@@ -201,15 +253,17 @@ Eigen::VectorBlock<const VectorXd> State::mean(BlockId id) const {
 }
 
 Eigen::Block<MatrixXd> State::cov(BlockId a, BlockId b) {
+  apply_pending();
   const BlockInfo& ba = block(a);
   const BlockInfo& bb = block(b);
   return P_.block(ba.tangent_offset, bb.tangent_offset, ba.tangent_size(), bb.tangent_size());
 }
 
 Eigen::Block<const MatrixXd> State::cov(BlockId a, BlockId b) const {
+  if (a != b) apply_pending();
   const BlockInfo& ba = block(a);
   const BlockInfo& bb = block(b);
-  return P_.block(ba.tangent_offset, bb.tangent_offset, ba.tangent_size(), bb.tangent_size());
+  return std::as_const(P_).block(ba.tangent_offset, bb.tangent_offset, ba.tangent_size(), bb.tangent_size());
 }
 
 int State::total_tangent(std::span<const BlockId> blocks) const {
@@ -226,6 +280,7 @@ void State::predict(BlockId id, const Eigen::Ref<const MatrixXd>& F, const Eigen
   const int t = b.tangent_size();
   const int off = b.tangent_offset;
   RTSLAM_CHECK(F.rows() == t && F.cols() == t && Q.rows() == t && Q.cols() == t, "predict: F/Q size mismatch");
+  apply_pending();
   // Cross-covariances P_bo ← F P_bo on every active column outside the block.
   for (const Run& r : runs_) {
     const int end = r.begin + r.length;
@@ -280,9 +335,76 @@ void State::predict_constrained(BlockId id, const Eigen::Ref<const MatrixXd>& F,
   predict(id, Fc, Q);
 }
 
+namespace {
+// The projection of project_out_basis through the Cholesky factor of NᵀN, in plain loops over the small operands
+// (A: r × n, N: n × k, r, n <= 64, k <= 16: Eigen's general products and triangular solves cost several times the
+// arithmetic at these sizes, and this runs for every predicted observation). False, A untouched, when NᵀN is not
+// well conditioned (the squared pivots' ratio below kMinPivotRatio): then (NᵀN)⁻¹ may differ from the
+// pseudo-inverse by more than rounding.
+bool project_out_basis_cholesky(Eigen::Ref<MatrixXd> A, const Eigen::Ref<const MatrixXd>& N) {
+  constexpr double kMinPivotRatio = 1e-6;
+  const int r = static_cast<int>(A.rows()), n = static_cast<int>(A.cols()), k = static_cast<int>(N.cols());
+  double L[16][16];  // NᵀN, then its Cholesky factor (lower)
+  for (int j = 0; j < k; ++j) {
+    for (int i = j; i < k; ++i) {
+      double acc = 0.0;
+      for (int p = 0; p < n; ++p) acc += N(p, i) * N(p, j);
+      L[i][j] = acc;
+    }
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+  for (int j = 0; j < k; ++j) {
+    double d = L[j][j];
+    for (int l = 0; l < j; ++l) d -= L[j][l] * L[j][l];
+    if (!(d > 0.0)) return false;
+    lo = std::min(lo, d);
+    hi = std::max(hi, d);
+    const double djj = std::sqrt(d);
+    L[j][j] = djj;
+    for (int i = j + 1; i < k; ++i) {
+      double v = L[i][j];
+      for (int l = 0; l < j; ++l) v -= L[i][l] * L[j][l];
+      L[i][j] = v / djj;
+    }
+  }
+  if (!(lo > kMinPivotRatio * hi)) return false;
+  // X = (A N)(NᵀN)⁻¹ row by row: y L Lᵀ = a N, forward then backward substitution; then A −= X Nᵀ.
+  double X[64][16];
+  for (int row = 0; row < r; ++row) {
+    double* x = X[row];
+    for (int j = 0; j < k; ++j) {
+      double acc = 0.0;
+      for (int p = 0; p < n; ++p) acc += A(row, p) * N(p, j);
+      x[j] = acc;
+    }
+    for (int j = 0; j < k; ++j) {
+      double v = x[j];
+      for (int l = 0; l < j; ++l) v -= L[j][l] * x[l];
+      x[j] = v / L[j][j];
+    }
+    for (int j = k - 1; j >= 0; --j) {
+      double v = x[j];
+      for (int l = j + 1; l < k; ++l) v -= L[l][j] * x[l];
+      x[j] = v / L[j][j];
+    }
+  }
+  for (int p = 0; p < n; ++p) {
+    for (int row = 0; row < r; ++row) {
+      double acc = 0.0;
+      for (int j = 0; j < k; ++j) acc += X[row][j] * N(p, j);
+      A(row, p) -= acc;
+    }
+  }
+  return true;
+}
+}  // namespace
+
 void project_out_basis(Eigen::Ref<MatrixXd> A, const Eigen::Ref<const MatrixXd>& N) {
   RTSLAM_CHECK(A.cols() == N.rows() && A.rows() <= 64 && A.cols() <= 64 && N.cols() <= 16,
                "project_out_basis: size mismatch");
+  // A full-rank, well-conditioned NᵀN (the usual case) has (NᵀN)⁺ = (NᵀN)⁻¹, applied through its Cholesky factor;
+  // the complete orthogonal decomposition's pseudo-inverse handles the rank-deficient and near-singular ones.
+  if (project_out_basis_cholesky(A, N)) return;
   const SmallMatrix NtN = N.transpose() * N;
   const Eigen::CompleteOrthogonalDecomposition<SmallMatrix> cod(NtN);
   const SmallMatrix G = cod.pseudoInverse();
@@ -292,27 +414,114 @@ void project_out_basis(Eigen::Ref<MatrixXd> A, const Eigen::Ref<const MatrixXd>&
 
 void State::compute_PHt(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H) const {
   const int m = static_cast<int>(H.rows());
-  for (const Run& r : runs_) {
-    auto rows = PHt_.block(r.begin, 0, r.length, m);
-    rows.setZero();
-    int col = 0;
-    for (BlockId id : blocks) {
-      const BlockInfo& b = block(id);
-      rows.noalias() +=
-          P_.block(r.begin, b.tangent_offset, r.length, b.tangent_size()) * H.middleCols(col, b.tangent_size()).transpose();
-      col += b.tangent_size();
+  const kernels::ActiveRows active = active_rows();
+  W_.head(kernels::packed_size(active.n, m)).setZero();
+  const kernels::ConstMatrixView P{P_.data(), P_.outerStride()};
+  const kernels::ConstMatrixView Hv{H.data(), H.outerStride()};
+  // A batched H is block-sparse (each landmark only in its own 2 rows) and a robot's columns are mostly zero (the
+  // camera sees its pose only): rows and columns of H that are zero over a block would only add exact zeros, so
+  // each block adds its non-zero ones only.
+  int col = 0;
+  for (BlockId id : blocks) {
+    const BlockInfo& b = block(id);
+    int k0 = 0, k1 = 0;
+    const int nc = nonzero_part(H, col, b.tangent_size(), k0, k1);
+    for (int j = 0; j < nc; j += kernels::kMaxPHtColumns) {
+      kernels::add_P_Ht(P, active, b.tangent_offset, nz_cols_.data() + j, std::min(kernels::kMaxPHtColumns, nc - j), Hv,
+                        col, k0, k1, W_.data(), m);
+    }
+    col += b.tangent_size();
+  }
+  if (pending_ > 0) pending_PHt(blocks, H);
+}
+
+void State::pending_PHt(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H) const {
+  // Off the diagonal blocks the covariance is P_ − U Uᵀ: P Hᵀ = P_ Hᵀ − U G with G = Σ_b U_bᵀ H_bᵀ over the
+  // involved blocks b (U_b: U's rows of block b). The rows of an involved block b must not subtract their own
+  // share U_b G_b (P_bb is current), so they add it back.
+  constexpr int kP = kernels::kPanelRows;
+  const int m = static_cast<int>(H.rows());
+  const int M = pending_;
+  auto G = G_.topLeftCorner(M, m);
+  G.setZero();
+  int col = 0;
+  for (BlockId id : blocks) {
+    const BlockInfo& b = block(id);
+    const int t = b.tangent_size();
+    int k0 = 0, k1 = 0;
+    const int nc = nonzero_part(H, col, t, k0, k1);
+    if (nc > 0) {
+      // G_b = U_bᵀ H_bᵀ on H's non-zero rows [k0, k1) and columns of the block.
+      auto Gb = Gb_.block(0, k0, M, k1 - k0);
+      Gb.setZero();
+      for (int j = 0; j < nc; ++j) {
+        const int c = nz_cols_[static_cast<size_t>(j)];
+        const double* u = pending_row(packed_index_[static_cast<size_t>(b.tangent_offset + c)]);
+        for (int l = k0; l < k1; ++l) {
+          const double h = H(l, col + c);
+          for (int k = 0; k < M; ++k) Gb(k, l - k0) += u[k * kP] * h;
+        }
+      }
+      G.middleCols(k0, k1 - k0) += Gb;
+      // Add back U_b G_b on the block's own rows.
+      for (int c = 0; c < t; ++c) {
+        const int i = packed_index_[static_cast<size_t>(b.tangent_offset + c)];
+        const double* u = pending_row(i);
+        double* w = W_.data() + static_cast<std::int64_t>(i / kP) * m * kP + i % kP;
+        for (int l = k0; l < k1; ++l) {
+          double acc = 0.0;
+          for (int k = 0; k < M; ++k) acc += u[k * kP] * Gb(k, l - k0);
+          w[l * kP] += acc;
+        }
+      }
+    }
+    col += t;
+  }
+  kernels::subtract_product(W_.data(), static_cast<int>(active_rows_.size()), m, U_.data(), M, pending_capacity_,
+                            kernels::ConstMatrixView{G_.data(), G_.outerStride()});
+}
+
+int State::nonzero_part(const Eigen::Ref<const MatrixXd>& H, int col, int t, int& k0, int& k1) const {
+  const int m = static_cast<int>(H.rows());
+  k0 = 0;
+  k1 = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!H.row(k).segment(col, t).isZero(0.0)) {
+      if (k1 == 0) k0 = k;
+      k1 = k + 1;
     }
   }
+  int nc = 0;
+  if (k1 > k0) {
+    for (int c = 0; c < t; ++c)
+      if (!H.col(col + c).segment(k0, k1 - k0).isZero(0.0)) nz_cols_[static_cast<size_t>(nc++)] = c;
+  }
+  return nc;
 }
 
 bool State::factor_S(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
                      const Eigen::Ref<const MatrixXd>& R, int m) const {
+  constexpr int kP = kernels::kPanelRows;
   auto S = S_.topLeftCorner(m, m);
-  S = R;
+  S.triangularView<Eigen::Lower>() = R;
+  // The lower triangle (all the Cholesky factorization reads): S(k, l) += Σ_c H(k, c) PHt(c, l) over each block's
+  // non-zero rows k and columns c.
   int col = 0;
   for (BlockId id : blocks) {
     const BlockInfo& b = block(id);
-    S.noalias() += H.middleCols(col, b.tangent_size()) * PHt_.block(b.tangent_offset, 0, b.tangent_size(), m);
+    int k0 = 0, k1 = 0;
+    const int nc = nonzero_part(H, col, b.tangent_size(), k0, k1);
+    for (int j = 0; j < nc; ++j) {
+      const int i = packed_index_[static_cast<size_t>(b.tangent_offset + nz_cols_[static_cast<size_t>(j)])];
+      pht_row_[static_cast<size_t>(j)] = W_.data() + static_cast<std::int64_t>(i / kP) * m * kP + i % kP;
+    }
+    for (int l = 0; l < m; ++l) {
+      for (int k = std::max(k0, l); k < k1; ++k) {
+        double acc = 0.0;
+        for (int j = 0; j < nc; ++j) acc += H(k, col + nz_cols_[static_cast<size_t>(j)]) * pht_row_[static_cast<size_t>(j)][l * kP];
+        S(k, l) += acc;
+      }
+    }
     col += b.tangent_size();
   }
   // In-place Cholesky on the lower triangle: S_ then holds L.
@@ -323,29 +532,64 @@ bool State::factor_S(std::span<const BlockId> blocks, const Eigen::Ref<const Mat
 
 void State::innovation_covariance(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
                                   const Eigen::Ref<const MatrixXd>& R, Eigen::Ref<MatrixXd> S) const {
+  constexpr int kP = kernels::kPanelRows;
   const int m = static_cast<int>(H.rows());
   RTSLAM_CHECK(m <= options_.max_measurement_rows && H.cols() == total_tangent(blocks) && R.rows() == m &&
-                   S.rows() == m && S.cols() == m,
+                   S.rows() == m && S.cols() == m && H.cols() <= P_.rows(),
                "innovation_covariance: size mismatch");
-  // Only the involved blocks' covariance is read: S = Σ_a Σ_b H_a P_ab H_bᵀ + R.
-  S = R;
-  int col_a = 0;
-  for (BlockId a : blocks) {
-    const BlockInfo& ba = block(a);
-    auto HPa = HP_.topRows(m);  // H_a P_a,b for each b, side by side
-    int col_b = 0;
-    for (BlockId b : blocks) {
-      const BlockInfo& bb = block(b);
-      HPa.middleCols(col_b, bb.tangent_size()).noalias() =
-          H.middleCols(col_a, ba.tangent_size()) *
-          P_.block(ba.tangent_offset, bb.tangent_offset, ba.tangent_size(), bb.tangent_size());
-      col_b += bb.tangent_size();
+  // Only the involved blocks' covariance is read, and only where H has a non-zero column (a camera sees the robot's
+  // pose, not its velocity or biases): S = H_nz P(nz, nz) H_nzᵀ + R, one triangle, copied onto the other.
+  int q = 0;
+  int col = 0;
+  int bi = 0;
+  for (BlockId id : blocks) {
+    const BlockInfo& b = block(id);
+    for (int c = 0; c < b.tangent_size(); ++c) {
+      if (!H.col(col + c).isZero(0.0)) {
+        nz_hcol_[static_cast<size_t>(q)] = col + c;
+        nz_prow_[static_cast<size_t>(q)] = b.tangent_offset + c;
+        nz_packed_[static_cast<size_t>(q)] = packed_index_[static_cast<size_t>(b.tangent_offset + c)];
+        nz_block_[static_cast<size_t>(q)] = bi;
+        ++q;
+      }
     }
-    S.noalias() += HPa.leftCols(col_b) * H.transpose();
-    col_a += ba.tangent_size();
+    col += b.tangent_size();
+    ++bi;
+  }
+  if (q > kMaxLazyColumns) apply_pending();
+  // P(nz, nz), through the pending downdate off the diagonal blocks (lower triangle, mirrored).
+  auto Pnz = Pnz_.topLeftCorner(q, q);
+  for (int j = 0; j < q; ++j) {
+    const double* P_j = P_.data() + static_cast<std::int64_t>(nz_prow_[static_cast<size_t>(j)]) * P_.outerStride();
+    for (int i = j; i < q; ++i) {
+      double v = P_j[nz_prow_[static_cast<size_t>(i)]];
+      if (pending_ > 0 && nz_block_[static_cast<size_t>(i)] != nz_block_[static_cast<size_t>(j)]) {
+        const double* ui = pending_row(nz_packed_[static_cast<size_t>(i)]);
+        const double* uj = pending_row(nz_packed_[static_cast<size_t>(j)]);
+        double acc = 0.0;
+        for (int k = 0; k < pending_; ++k) acc += ui[k * kP] * uj[k * kP];
+        v -= acc;
+      }
+      Pnz(i, j) = Pnz(j, i) = v;
+    }
+  }
+  // HP(k, j) = Σ_i H(k, nz_i) P(nz_i, nz_j).
+  for (int j = 0; j < q; ++j) {
+    for (int k = 0; k < m; ++k) {
+      double acc = 0.0;
+      for (int i = 0; i < q; ++i) acc += H(k, nz_hcol_[static_cast<size_t>(i)]) * Pnz(i, j);
+      HP_(k, j) = acc;
+    }
+  }
+  for (int l = 0; l < m; ++l) {
+    for (int k = l; k < m; ++k) {
+      double acc = 0.0;
+      for (int j = 0; j < q; ++j) acc += HP_(k, j) * H(l, nz_hcol_[static_cast<size_t>(j)]);
+      S(k, l) = R(k, l) + acc;
+    }
   }
   for (int j = 0; j < m; ++j)
-    for (int i = j + 1; i < m; ++i) S(i, j) = S(j, i) = 0.5 * (S(i, j) + S(j, i));
+    for (int i = j + 1; i < m; ++i) S(j, i) = S(i, j);
 }
 
 CorrectionResult State::mean_correction(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
@@ -373,25 +617,18 @@ CorrectionResult State::mean_correction(std::span<const BlockId> blocks, const E
   // dx = P Hᵀ S⁻¹ y = PHt L⁻ᵀ z.
   L.transpose().solveInPlace(z);
   dx.setZero();
-  for (const Run& r : runs_) dx.segment(r.begin, r.length).noalias() = PHt_.block(r.begin, 0, r.length, m) * z;
+  packed_times(m, z, dx);
   return res;
 }
 
-void State::mirror_lower_to_upper(Eigen::Block<MatrixXd> A) {
-  // Tiled so that both the read (rows) and the write (columns) stay in cache.
-  constexpr int kTile = 32;
-  const int n = static_cast<int>(A.rows());
-  for (int j0 = 0; j0 < n; j0 += kTile) {
-    const int nj = std::min(kTile, n - j0);
-    for (int i0 = 0; i0 <= j0; i0 += kTile) {
-      const int ni = std::min(kTile, n - i0);
-      if (i0 == j0) {
-        for (int j = 0; j < nj; ++j)
-          for (int i = 0; i < j; ++i) A(i0 + i, j0 + j) = A(j0 + j, i0 + i);
-      } else {
-        A.block(i0, j0, ni, nj) = A.block(j0, i0, nj, ni).transpose();
-      }
-    }
+void State::packed_times(int m, const Eigen::Ref<const VectorXd>& v, Eigen::Ref<VectorXd> out) const {
+  constexpr int kP = kernels::kPanelRows;
+  const int n = static_cast<int>(active_rows_.size());
+  for (int i = 0; i < n; ++i) {
+    const double* w = W_.data() + static_cast<std::int64_t>(i / kP) * m * kP + i % kP;
+    double acc = 0.0;
+    for (int k = 0; k < m; ++k) acc += w[k * kP] * v[k];
+    out[active_rows_[static_cast<size_t>(i)]] = acc;
   }
 }
 
@@ -420,40 +657,87 @@ CorrectionResult State::correct(std::span<const BlockId> blocks, const Eigen::Re
     res.status = CorrectionResult::Status::Gated;
     return res;
   }
-  // W = PHt L⁻ᵀ (in place in PHt_), active rows only.
-  for (const Run& r : runs_) {
-    auto W = PHt_.block(r.begin, 0, r.length, m);
-    L.transpose().solveInPlace<Eigen::OnTheRight>(W);
-  }
+  // W = PHt L⁻ᵀ (in place), active rows only.
+  const kernels::ActiveRows active = active_rows();
+  kernels::solve_lower_transposed(W_.data(), active.n, m, kernels::ConstMatrixView{S_.data(), S_.outerStride()});
   // Always-on check: every positive variance stays positive (a zero-variance gauge row has W = 0 and stays 0).
-  for (const Run& r : runs_) {
-    for (int i = r.begin; i < r.begin + r.length; ++i) {
-      const double after = P_(i, i) - PHt_.row(i).head(m).squaredNorm();
-      if (!(after > 0.0 || (after == 0.0 && P_(i, i) == 0.0))) {
-        res.status = CorrectionResult::Status::NonPositiveVariance;
-        return res;
-      }
+  constexpr int kP = kernels::kPanelRows;
+  for (int i = 0; i < active.n; ++i) {
+    const double* w = W_.data() + static_cast<std::int64_t>(i / kP) * m * kP + i % kP;
+    double w2 = 0.0;
+    for (int k = 0; k < m; ++k) w2 += w[k * kP] * w[k * kP];
+    const int row = active.rows[i];
+    const double after = P_(row, row) - w2;
+    if (!(after > 0.0 || (after == 0.0 && P_(row, row) == 0.0))) {
+      res.status = CorrectionResult::Status::NonPositiveVariance;
+      return res;
     }
   }
   // Mean: x ← x ⊕ W z.
   dx_.setZero();
-  for (const Run& r : runs_) dx_.segment(r.begin, r.length).noalias() = PHt_.block(r.begin, 0, r.length, m) * z;
+  packed_times(m, z, dx_);
   boxplus_all(x_, dx_, x_);
-  // Covariance: P ← P − W Wᵀ, lower triangle of each run pair, then mirrored.
-  for (size_t a = 0; a < runs_.size(); ++a) {
-    const Run ra = runs_[a];
-    const auto Wa = PHt_.block(ra.begin, 0, ra.length, m);
-    auto Paa = P_.block(ra.begin, ra.begin, ra.length, ra.length);
-    Paa.selfadjointView<Eigen::Lower>().rankUpdate(Wa, -1.0);
-    mirror_lower_to_upper(Paa);
-    for (size_t b = 0; b < a; ++b) {
-      const Run rb = runs_[b];
-      auto Pab = P_.block(ra.begin, rb.begin, ra.length, rb.length);
-      Pab.noalias() -= Wa * PHt_.block(rb.begin, 0, rb.length, m).transpose();
-      P_.block(rb.begin, ra.begin, rb.length, ra.length) = Pab.transpose();
+  // Covariance: P ← P − W Wᵀ, now on the diagonal blocks, deferred elsewhere.
+  defer_downdate(m);
+  return res;
+}
+
+void State::defer_downdate(int m) {
+  constexpr int kP = kernels::kPanelRows;
+  if (pending_ + m > pending_capacity_) apply_pending();
+  // Each block's own covariance, exactly symmetric: P_bb −= W_b W_bᵀ (lower triangle, mirrored).
+  for (const BlockInfo& b : blocks_) {
+    if (!b.used) continue;
+    const int t = b.tangent_size();
+    const int i0 = packed_index_[static_cast<size_t>(b.tangent_offset)];
+    for (int c = 0; c < t; ++c) {
+      const int j = i0 + c;
+      const double* wj = W_.data() + static_cast<std::int64_t>(j / kP) * m * kP + j % kP;
+      for (int r = c; r < t; ++r) {
+        const int i = i0 + r;
+        const double* wi = W_.data() + static_cast<std::int64_t>(i / kP) * m * kP + i % kP;
+        double acc = 0.0;
+        for (int k = 0; k < m; ++k) acc += wi[k * kP] * wj[k * kP];
+        const double v = P_(b.tangent_offset + r, b.tangent_offset + c) - acc;
+        P_(b.tangent_offset + r, b.tangent_offset + c) = v;
+        P_(b.tangent_offset + c, b.tangent_offset + r) = v;
+      }
     }
   }
-  return res;
+  // W joins the pending factor: columns [pending_, pending_ + m) of U.
+  const int np = (static_cast<int>(active_rows_.size()) + kP - 1) / kP;
+  for (int p = 0; p < np; ++p) {
+    std::copy_n(W_.data() + static_cast<std::int64_t>(p) * m * kP, static_cast<std::int64_t>(m) * kP,
+                U_.data() + (static_cast<std::int64_t>(p) * pending_capacity_ + pending_) * kP);
+  }
+  pending_ += m;
+}
+
+void State::apply_pending() const {
+  if (pending_ == 0) return;
+  // P_ −= U Uᵀ everywhere (one pass, lower triangle mirrored), except on the diagonal blocks, which are current:
+  // saved before and restored after.
+  std::int64_t o = 0;
+  for (const BlockInfo& b : blocks_) {
+    if (!b.used) continue;
+    const int t = b.tangent_size();
+    Eigen::Map<MatrixXd>(diag_save_.data() + o, t, t) = P_.block(b.tangent_offset, b.tangent_offset, t, t);
+    o += static_cast<std::int64_t>(t) * t;
+  }
+  kernels::downdate_mirrored(P_.data(), P_.outerStride(), active_rows(), U_.data(), pending_, pending_capacity_);
+  o = 0;
+  for (const BlockInfo& b : blocks_) {
+    if (!b.used) continue;
+    const int t = b.tangent_size();
+    P_.block(b.tangent_offset, b.tangent_offset, t, t) = Eigen::Map<const MatrixXd>(diag_save_.data() + o, t, t);
+    o += static_cast<std::int64_t>(t) * t;
+  }
+  pending_ = 0;
+}
+
+const MatrixXd& State::covariance() const {
+  apply_pending();
+  return P_;
 }
 
 void State::boxplus_all(const VectorXd& src, const Eigen::Ref<const VectorXd>& dx, VectorXd& out) const {

@@ -7,13 +7,24 @@
 // ranges are reused, and nothing else moves. Operations touch only what they involve:
 //  - predict(b): the rows/columns of block b (P_bb and the cross-covariances P_bo with every active block o);
 //  - correct(blocks, H): H is COMPRESSED (columns for the involved blocks only, in the order given); P Hᵀ costs
-//    O(n·k), the covariance downdate O(n²·m) over the active rows only (one triangle, mirrored: exactly symmetric).
+//    O(n·k) (only where H is non-zero), the covariance downdate O(n²·m) over the active rows only (one triangle,
+//    mirrored: exactly symmetric).
 // Covariance rows that belong to no block are never read or written. Storage is allocated once at construction:
 // predict/correct allocate nothing, however many blocks come and go.
 //
 // Correction (../shared/MATH.md, "Correction"): S = H P Hᵀ + R = L Lᵀ, W = P Hᵀ L⁻ᵀ, x ← x ⊕ W L⁻¹ y,
 // P ← P − W Wᵀ. An always-on check refuses an update that would make any variance non-positive. The orientation
 // reset Jacobian I − ½[δθ]× is neglected (it is identity to first order); stated here as MATH.md asks.
+//
+// Deferred downdate. Outside each block's own covariance P_bb, the downdate P ← P − W Wᵀ is not applied at once:
+// correct() updates the mean and every P_bb, and appends W to a pending factor U, so that the covariance is
+// P = P_stored − U Uᵀ off the diagonal blocks. The State's own reads (P Hᵀ, innovation covariances) account for U;
+// the rank-Σm update of the stored covariance runs in one pass when something needs the stored values: predict,
+// add_block, remove_block, the accessors below (except cov(a, a), always current), or U full. The corrections of
+// one image then cost one pass over the covariance instead of one each: with ~500 active rows the covariance
+// (2 MB) does not stay in cache, and streaming it, not the arithmetic, dominated a small correction. The values are
+// those of the immediate downdate up to rounding. The accessors that apply it are const (the covariance they show
+// does not change): do not keep a view of an off-diagonal block across a correction, ask for it again.
 //
 // Observability constraints (optional, `nullspace_dim` > 0; Hesch et al., "Consistency analysis and improvement of
 // vision-aided inertial navigation", 2014): the State then tracks, per block, its rows N_b of a basis N of the
@@ -24,6 +35,7 @@
 // EKF linearized at changing estimates would otherwise gain information along N and become overconfident.
 //
 // Not thread-safe: workspaces are shared by the const queries too.
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <span>
@@ -33,6 +45,7 @@
 #include <Eigen/Core>
 
 #include "rtslam/filter/block_layout.hpp"
+#include "rtslam/filter/kernels.hpp"
 #include "rtslam/filter/range_allocator.hpp"
 
 namespace rtslam::filter {
@@ -103,14 +116,21 @@ class State {
   // --- access ---------------------------------------------------------------------------------------------
   Eigen::VectorBlock<VectorXd> mean(BlockId id);
   Eigen::VectorBlock<const VectorXd> mean(BlockId id) const;
+  /// Covariance blocks: the non-const one and the off-diagonal const ones apply the pending downdate first (see
+  /// "Deferred downdate"); a block's own covariance cov(a, a) is always current.
   Eigen::Block<MatrixXd> cov(BlockId a, BlockId b);
   Eigen::Block<const MatrixXd> cov(BlockId a, BlockId b) const;
   Eigen::Block<const MatrixXd> cov(BlockId a) const { return cov(a, a); }
   /// The whole mean vector (ambient capacity); unused entries are meaningless.
   const VectorXd& mean_vector() const { return x_; }
   VectorXd& mean_vector() { return x_; }
-  /// The whole covariance (tangent capacity); unused rows are meaningless.
-  const MatrixXd& covariance() const { return P_; }
+  /// The whole covariance (tangent capacity), after applying the pending downdate; unused rows are meaningless.
+  const MatrixXd& covariance() const;
+  /// Applies the pending downdate to the stored covariance (every operation that needs it does so itself).
+  void apply_pending() const;
+  /// Measurement rows corrected but not yet applied to the stored covariance (at most pending_capacity()).
+  int pending_rows() const { return pending_; }
+  int pending_capacity() const { return pending_capacity_; }
   /// Active covariance rows as sorted, merged [begin, begin+len) runs.
   struct Run {
     int begin;
@@ -155,32 +175,66 @@ class State {
 
  private:
   int total_tangent(std::span<const BlockId> blocks) const;
-  /// PHt_(active rows, 0:m) = P(active, blocks) Hᵀ.
+  /// Packed P Hᵀ (kernels.hpp) of the active rows into W_ (m columns), zero where H has zero rows: each block adds
+  /// only the rows of H that are non-zero over its columns (a landmark's 2, the shared blocks' all).
   void compute_PHt(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H) const;
-  /// S_ = H PHt_(block rows) + R; returns false if the Cholesky factorization fails.
+  /// S_ = H PHt(block rows) + R from the packed P Hᵀ; returns false if the Cholesky factorization fails (S_'s lower
+  /// triangle then holds L).
   bool factor_S(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H,
                 const Eigen::Ref<const MatrixXd>& R, int m) const;
+  /// out(row) = W(row, :) v over the active rows of the packed W_ (m columns); other entries untouched.
+  void packed_times(int m, const Eigen::Ref<const VectorXd>& v, Eigen::Ref<VectorXd> out) const;
+  /// The part of H over one block's columns [col, col + t) that is not zero: rows [k0, k1) (none: k0 == k1) and,
+  /// returned, the number of block columns non-zero on those rows, listed (block-relative) in nz_cols_.
+  int nonzero_part(const Eigen::Ref<const MatrixXd>& H, int col, int t, int& k0, int& k1) const;
+  kernels::ActiveRows active_rows() const {
+    return {active_rows_.data(), groups_.data(), static_cast<int>(active_rows_.size())};
+  }
   void rebuild_runs();
-  /// Copies the strict lower triangle of a square block onto its upper triangle.
-  static void mirror_lower_to_upper(Eigen::Block<MatrixXd> A);
+
+  /// After a correction with W (packed, m columns): P_bb −= W_b W_bᵀ for every active block b, then W joins U.
+  void defer_downdate(int m);
+  /// Adds the pending factor's share to the packed P Hᵀ of a correction (see compute_PHt).
+  void pending_PHt(std::span<const BlockId> blocks, const Eigen::Ref<const MatrixXd>& H) const;
+  /// U(i, k) of the pending factor (packed with panel stride pending_capacity_).
+  const double* pending_row(int packed_row) const {
+    return U_.data() + (static_cast<std::int64_t>(packed_row / kernels::kPanelRows) * pending_capacity_) *
+                           kernels::kPanelRows + packed_row % kernels::kPanelRows;
+  }
 
   StateOptions options_;
   VectorXd x_;
-  MatrixXd P_;
+  mutable MatrixXd P_;     // stored covariance: current on the diagonal blocks, P + U Uᵀ elsewhere (apply_pending)
   MatrixXd N_;             // tangent capacity × nullspace_dim: the tracked unobservable basis
   RangeAllocator ambient_alloc_;
   RangeAllocator tangent_alloc_;
   std::vector<BlockInfo> blocks_;
   std::vector<BlockId> free_ids_;
   std::vector<Run> runs_;
+  std::vector<int> active_rows_;   // the active covariance rows, increasing (the packed row order)
+  std::vector<int> packed_index_;  // tangent capacity: packed row of each covariance row (-1: inactive)
+  std::vector<kernels::LaneGroup> groups_;  // the packed rows' lane groups (kernels.hpp)
   int used_blocks_ = 0;
 
+  // The pending downdate: P = P_ − U Uᵀ off the diagonal blocks, U packed (active rows × pending_ columns).
+  int pending_capacity_ = 0;
+  mutable int pending_ = 0;
+  VectorXd U_;
+
   // Workspaces, sized once.
-  mutable MatrixXd PHt_;   // tangent capacity × max rows  (later W = P Hᵀ L⁻ᵀ)
+  std::vector<Run> spans_;  // rebuild_runs
+  mutable std::vector<int> nz_cols_;             // max block tangent: nonzero_part
+  mutable std::vector<const double*> pht_row_;   // max block tangent: factor_S
+  mutable std::vector<int> nz_hcol_, nz_prow_, nz_packed_, nz_block_;  // tangent capacity: innovation_covariance
+  mutable VectorXd W_;     // packed (kernels.hpp) active rows × max rows: P Hᵀ, then W = P Hᵀ L⁻ᵀ
   mutable MatrixXd S_;     // max rows × max rows (its lower triangle holds L after factorization)
   mutable VectorXd z_;     // whitened innovation L⁻¹ y
   mutable VectorXd dx_;    // tangent capacity
   mutable MatrixXd HP_;    // max rows × tangent capacity (innovation covariance)
+  mutable MatrixXd G_;     // pending capacity × max rows: Uᵀ Hᵀ over a correction's blocks
+  mutable MatrixXd Gb_;    // pending capacity × max rows: one block's share of G_
+  mutable MatrixXd Pnz_;   // kMaxLazyColumns²: an innovation covariance's P entries
+  mutable VectorXd diag_save_;  // the diagonal blocks while the pending downdate is applied
   MatrixXd tmp_;           // max block tangent × tangent capacity (prediction)
   MatrixXd tmp_small_;     // max block tangent × max block tangent
   MatrixXd F_oc_;          // max block tangent × max block tangent (constrained transition)

@@ -107,6 +107,14 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
   batch_H_.resize(2 * kMaxBatch, 64 + slam::kMaxLandmarkTangent * kMaxBatch);
   batch_y_.resize(2 * kMaxBatch);
   batch_R_.resize(2 * kMaxBatch, 2 * kMaxBatch);
+  // The predicted patches of as many candidates as reserved above, sized now so that frames do not allocate.
+  warp_buf_.resize(candidates_.capacity());
+  patches_.resize(candidates_.capacity());
+  const int n = opt_.zncc.patch_size;
+  for (size_t i = 0; i < warp_buf_.size(); ++i) {
+    warp_buf_[i].resize(n, n);
+    patches_[i].assign(warp_buf_[i].view());
+  }
 }
 
 bool ActiveSearchDataManager::predict_patch(const slam::Map& map, const slam::Sensor& sensor,
@@ -214,7 +222,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   image_ = img->image;
   filter::State& state = map.state();
   const double gate = opt_.n_sigma * opt_.n_sigma;
-  if (dx_.size() != state.covariance().rows()) dx_.setZero(state.covariance().rows());
+  if (dx_.size() != state.tangent_capacity()) dx_.setZero(state.tangent_capacity());
   if (hyp_mean_.size() != state.mean_vector().size()) hyp_mean_ = state.mean_vector();
 
   // 1. Predict all observations; keep the visible ones with a reasonable search region and a predicted patch.
@@ -236,14 +244,17 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     c.slot = slot;
     c.h0 = o->h;
     c.S0 = o->S;
+    c.det0 = o->S.determinant();
     candidates_.push_back(c);
   }
   stats.visible = static_cast<int>(candidates_.size());
-  // Expected information: the largest innovation covariance first (stable: ties keep the map order).
+  // Expected information: the largest innovation covariance first, ties in the map order (a stable sort's order,
+  // without its temporary buffer: the slot is the map order).
   order_.clear();
   for (Candidate& c : candidates_) order_.push_back(&c);
-  std::stable_sort(order_.begin(), order_.end(),
-                   [](const Candidate* a, const Candidate* b) { return a->S0.determinant() > b->S0.determinant(); });
+  std::sort(order_.begin(), order_.end(), [](const Candidate* a, const Candidate* b) {
+    return a->det0 > b->det0 || (a->det0 == b->det0 && a->slot < b->slot);
+  });
   const auto t1 = Clock::now();
 
   auto count_search = [&](Candidate& c) {

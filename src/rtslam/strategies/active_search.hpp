@@ -108,6 +108,7 @@ class ActiveSearchDataManager final : public slam::DataManager {
     int slot = 0;                  // index of its predicted patch
     Eigen::Vector2d h0 = Eigen::Vector2d::Zero();
     Eigen::Matrix2d S0 = Eigen::Matrix2d::Identity();
+    double det0 = 1.0;             // det S0 (the search order)
     bool tried = false;            // drawn as a RANSAC hypothesis
     bool full_searched = false;    // searched in its full ellipse (result below)
     bool full_matched = false;

@@ -1,0 +1,178 @@
+// The correction kernels (filter/kernels.hpp) on active rows with holes: against dense references, and the generic
+// and AVX2 versions bit-identical (the AVX2 comparisons are skipped on a CPU without it).
+#include "rtslam/filter/kernels.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <vector>
+
+#include <Eigen/Core>
+#include <gtest/gtest.h>
+
+#include "rtslam/core/random.hpp"
+
+namespace rtslam::filter::kernels {
+namespace {
+
+using Eigen::MatrixXd;
+
+constexpr int kP = kPanelRows;
+
+// Active rows of a 70 × 70 covariance: runs of 1 to 9 rows separated by holes, the last run ending at the last row.
+struct Layout {
+  std::vector<int> rows;
+  std::vector<LaneGroup> groups;
+  ActiveRows active() const { return {rows.data(), groups.data(), static_cast<int>(rows.size())}; }
+};
+
+Layout make_layout(const std::vector<std::pair<int, int>>& runs) {
+  Layout l;
+  for (const auto& [begin, length] : runs)
+    for (int i = begin; i < begin + length; ++i) l.rows.push_back(i);
+  const int n = static_cast<int>(l.rows.size());
+  for (int g = 0; g < (n + kP - 1) / kP * 2; ++g) {
+    LaneGroup lg;
+    for (int lane = 0; lane < kGroupLanes && g * kGroupLanes + lane < n; ++lane) {
+      const int i = g * kGroupLanes + lane;
+      if (lg.segments == 0 || l.rows[static_cast<size_t>(i - 1)] != l.rows[static_cast<size_t>(i)] - 1) {
+        lg.base[lg.segments++] = l.rows[static_cast<size_t>(i)] - lane;
+      }
+      lg.mask[lg.segments - 1] |= 1u << lane;
+    }
+    l.groups.push_back(lg);
+  }
+  return l;
+}
+
+const std::vector<std::pair<int, int>> kRuns = {{0, 9}, {10, 3}, {14, 1}, {16, 7}, {25, 2}, {28, 8},
+                                                {37, 5}, {43, 4}, {50, 6}, {57, 3}, {61, 9}};
+constexpr int kCap = 70;
+
+MatrixXd random_matrix(int r, int c, Rng& rng) {
+  MatrixXd A(r, c);
+  for (int i = 0; i < r; ++i)
+    for (int j = 0; j < c; ++j) A(i, j) = randn(rng);
+  return A;
+}
+
+// Packs the rows of a dense n × m matrix with the given panel stride.
+std::vector<double> pack(const MatrixXd& W, int stride) {
+  const int n = static_cast<int>(W.rows());
+  std::vector<double> out(static_cast<size_t>(packed_size(n, stride)), 0.0);
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < W.cols(); ++k) out[static_cast<size_t>((i / kP * stride + k) * kP + i % kP)] = W(i, k);
+  return out;
+}
+
+MatrixXd unpack(const std::vector<double>& packed, int n, int m, int stride) {
+  MatrixXd W(n, m);
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < m; ++k) W(i, k) = packed[static_cast<size_t>((i / kP * stride + k) * kP + i % kP)];
+  return W;
+}
+
+// Runs f under each available instruction set and returns the results (generic first).
+template <class F>
+auto under_each_isa(F f) {
+  std::vector<decltype(f())> out;
+  out.push_back((set_kernel_isa(KernelIsa::generic), f()));
+  if (best_kernel_isa() == KernelIsa::avx2) out.push_back((set_kernel_isa(KernelIsa::avx2), f()));
+  set_kernel_isa(best_kernel_isa());
+  return out;
+}
+
+bool bit_identical(const MatrixXd& a, const MatrixXd& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() &&
+         std::equal(a.data(), a.data() + a.size(), b.data(),
+                    [](double x, double y) { return std::memcmp(&x, &y, sizeof(double)) == 0; });
+}
+
+TEST(FilterKernels, DowndateMatchesDenseOnActiveRowsAndLeavesHolesUntouched) {
+  Rng rng(5);
+  const Layout l = make_layout(kRuns);
+  const int n = l.active().n;
+  MatrixXd P0 = random_matrix(kCap, kCap, rng);
+  P0 = (P0 + P0.transpose()).eval();
+  for (const int m : {1, 2, 7, 44}) {
+    const MatrixXd W = random_matrix(n, m, rng);
+    const int stride = m + 3;  // a pending factor's panels hold more columns than are used
+    const std::vector<double> packed = pack(W, stride);
+    const auto results = under_each_isa([&] {
+      MatrixXd P = P0;
+      downdate_mirrored(P.data(), P.outerStride(), l.active(), packed.data(), m, stride);
+      return P;
+    });
+    MatrixXd expected = P0;
+    for (int a = 0; a < n; ++a)
+      for (int b = 0; b < n; ++b) expected(l.rows[a], l.rows[b]) -= W.row(a).dot(W.row(b));
+    for (const MatrixXd& P : results) {
+      EXPECT_LT((P - expected).cwiseAbs().maxCoeff(), 1e-12) << "m = " << m;
+      EXPECT_TRUE(bit_identical(P, P.transpose())) << "m = " << m;
+      // Holes: rows and columns of no run are neither read into nor written.
+      for (int i = 0; i < kCap; ++i) {
+        const bool active_i = std::find(l.rows.begin(), l.rows.end(), i) != l.rows.end();
+        for (int j = 0; j < kCap; ++j) {
+          const bool active_j = std::find(l.rows.begin(), l.rows.end(), j) != l.rows.end();
+          if (!(active_i && active_j)) {
+            ASSERT_EQ(P(i, j), P0(i, j)) << i << "," << j;
+          }
+        }
+      }
+    }
+    if (results.size() == 2) {
+      EXPECT_TRUE(bit_identical(results[0], results[1])) << "m = " << m;
+    }
+  }
+}
+
+TEST(FilterKernels, PHtSolveAndProductMatchDenseAndAgreeAcrossInstructionSets) {
+  Rng rng(6);
+  const Layout l = make_layout(kRuns);
+  const int n = l.active().n;
+  const MatrixXd P = random_matrix(kCap, kCap, rng);
+  const int m = 11;
+  const MatrixXd H = random_matrix(m, 9, rng);
+  const std::vector<int> cols = {0, 2, 3, 7};  // H's columns 1, 4, 5, 6, 8 are treated as zero
+  MatrixXd L = random_matrix(m, m, rng).triangularView<Eigen::Lower>();
+  L.diagonal() = L.diagonal().cwiseAbs() + MatrixXd::Ones(m, 1) * 2.0;
+  const int mu = 5;
+  const MatrixXd U = random_matrix(n, mu, rng);
+  const MatrixXd G = random_matrix(mu, m, rng);
+  const std::vector<double> U_packed = pack(U, mu + 2);
+  const auto results = under_each_isa([&] {
+    std::vector<double> W(static_cast<size_t>(packed_size(n, m)), 0.0);
+    // P(:, 30 + c) H(k, c)ᵀ on rows [2, 9) of H.
+    add_P_Ht(ConstMatrixView{P.data(), P.outerStride()}, l.active(), 30, cols.data(), static_cast<int>(cols.size()),
+             ConstMatrixView{H.data(), H.outerStride()}, 0, 2, 9, W.data(), m);
+    const MatrixXd PHt = unpack(W, n, m, m);
+    solve_lower_transposed(W.data(), n, m, ConstMatrixView{L.data(), L.outerStride()});
+    const MatrixXd solved = unpack(W, n, m, m);
+    subtract_product(W.data(), n, m, U_packed.data(), mu, mu + 2, ConstMatrixView{G.data(), G.outerStride()});
+    const MatrixXd reduced = unpack(W, n, m, m);
+    return std::vector<MatrixXd>{PHt, solved, reduced};
+  });
+  MatrixXd PHt = MatrixXd::Zero(n, m);
+  for (int i = 0; i < n; ++i)
+    for (int k = 2; k < 9; ++k)
+      for (int c : cols) PHt(i, k) += P(l.rows[i], 30 + c) * H(k, c);
+  const MatrixXd solved = L.triangularView<Eigen::Lower>().solve(PHt.transpose()).transpose();
+  const MatrixXd reduced = solved - U * G;
+  for (const auto& r : results) {
+    EXPECT_LT((r[0] - PHt).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_LT((r[1] - solved).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_LT((r[2] - reduced).cwiseAbs().maxCoeff(), 1e-12);
+  }
+  if (results.size() == 2) {
+    for (size_t k = 0; k < 3; ++k) EXPECT_TRUE(bit_identical(results[0][k], results[1][k])) << k;
+  }
+}
+
+TEST(FilterKernels, InstructionSetIsClampedToWhatTheCpuSupports) {
+  EXPECT_EQ(set_kernel_isa(KernelIsa::avx2), best_kernel_isa());
+  EXPECT_EQ(kernel_isa(), best_kernel_isa());
+  EXPECT_EQ(set_kernel_isa(KernelIsa::generic), KernelIsa::generic);
+  set_kernel_isa(best_kernel_isa());
+}
+
+}  // namespace
+}  // namespace rtslam::filter::kernels

@@ -8,6 +8,8 @@ namespace rtslam::filter {
 
 RangeAllocator::RangeAllocator(int capacity) : capacity_(capacity) {
   RTSLAM_CHECK(capacity > 0, "capacity must be positive");
+  // Free intervals are disjoint and non-adjacent: at most (capacity + 1) / 2 of them, so releases never allocate.
+  free_.reserve(static_cast<std::size_t>(capacity + 1) / 2 + 1);
   free_.push_back({0, capacity});
 }
 

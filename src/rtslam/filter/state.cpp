@@ -68,9 +68,11 @@ State::State(StateOptions options)
       tmp_small_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)),
       F_oc_(MatrixXd::Zero(options.max_block_tangent, options.max_block_tangent)) {
   N_ = MatrixXd::Zero(options.tangent_capacity, options.nullspace_dim);
-  blocks_.reserve(256);
+  // Every block has at least one covariance row: with these, adding and removing blocks never allocates.
+  blocks_.reserve(static_cast<size_t>(options.tangent_capacity));
+  free_ids_.reserve(static_cast<size_t>(options.tangent_capacity));
   runs_.reserve(64);
-  spans_.reserve(256);
+  spans_.reserve(static_cast<size_t>(options.tangent_capacity));
   active_rows_.reserve(static_cast<size_t>(options.tangent_capacity));
   packed_index_.assign(static_cast<size_t>(options.tangent_capacity), -1);
   groups_.reserve(static_cast<size_t>(2 * (options.tangent_capacity / kernels::kPanelRows + 1)));

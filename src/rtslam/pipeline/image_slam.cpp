@@ -1,7 +1,6 @@
 #include "rtslam/pipeline/image_slam.hpp"
 
 #include <algorithm>
-#include <deque>
 #include <cmath>
 #include <optional>
 #include <variant>
@@ -13,6 +12,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/core/ring_buffer.hpp"
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/pipeline/config_common.hpp"
 #include "rtslam/sim/simulation.hpp"
@@ -273,12 +273,15 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   result.inertial = inertial;
   const auto total = ds.source->image_count();
   const int n_total = total ? static_cast<int>(*total) : 0;
+  // One entry per image: reserved when the count is known, so that the frame loop does not reallocate them.
+  result.frames.reserve(static_cast<std::size_t>(n_total));
+  result.estimate.poses.reserve(static_cast<std::size_t>(n_total));
   strategies::RawImage raw;
   int done = 0;       // images handed to the filter
   int consumed = 0;   // images taken from the stream (processed or not), for progress
   bool stop = false;
   std::vector<ImuWindowSample> imu_window;  // before the inertial start
-  std::deque<io::ImageFrame> waiting;       // images not yet covered by the IMU
+  RingBuffer<io::ImageFrame> waiting(8);     // images not yet covered by the IMU
   std::optional<TimeNs> last_imu_t;
 
   const auto ground_truth_at = [&](TimeNs t) -> const StampedPose* {
@@ -390,14 +393,14 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
       }
       continue;
     }
-    const auto* frame = std::get_if<io::ImageFrame>(&*m);
+    auto* frame = std::get_if<io::ImageFrame>(&*m);
     if (frame == nullptr || frame->camera != o.camera) continue;
     if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
     if (!inertial) {
       process_image(*frame);
       continue;
     }
-    waiting.push_back(*frame);
+    waiting.push_back(std::move(*frame));
     // At equal timestamps the IMU sample comes first: an image may be covered on arrival.
     while (!stop && !waiting.empty() && last_imu_t && waiting.front().t + t_d <= *last_imu_t) {
       process_image(waiting.front());
@@ -405,7 +408,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
     }
     if (waiting.size() > 200) {
       throw DataError(fmt::format("{}: 200 images wait for IMU data (the IMU stream stops or lags behind the camera)",
-                                  frame->path));
+                                  waiting.back().path));
     }
   }
   result.images_not_covered = static_cast<int>(stop ? 0 : waiting.size());

@@ -30,12 +30,14 @@ std::vector<Sensor*> Map::sensors() const {
 }
 
 void Map::create_observations(Landmark& lmk) {
-  for (Sensor* s : sensors()) {
-    if (lmk.observation_of(*s)) continue;
-    Observation o;
-    o.sensor = s;
-    o.landmark = &lmk;
-    lmk.observations_.push_back(std::move(o));
+  for (const auto& r : robots_) {
+    for (const auto& s : r->sensors()) {
+      if (lmk.observation_of(*s)) continue;
+      Observation o;
+      o.sensor = s.get();
+      o.landmark = &lmk;
+      lmk.observations_.push_back(std::move(o));
+    }
   }
 }
 

@@ -1,12 +1,12 @@
 #pragma once
 // Robots: a state block in the map whose first segments are the pose [p_WR(3) q_WR(4)] (tangent [δp δθ], the
 // first 6 covariance rows of the block), then model-specific states. Robots own their sensors.
-#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "rtslam/core/ring_buffer.hpp"
 #include "rtslam/core/time.hpp"
 #include "rtslam/filter/state.hpp"
 #include "rtslam/math/rotation.hpp"
@@ -112,7 +112,7 @@ class InertialRobot final : public Robot {
   static models::ImuMeasurement lerp(const Sample& a, const Sample& b, TimeNs t);
   models::InertialParams params_;
   std::optional<Sample> prev_;  // the latest sample at or before time_
-  std::deque<Sample> pending_;  // samples after time_
+  RingBuffer<Sample> pending_{64};  // samples after time_ (reused: no allocation per sample)
   long steps_ = 0;
   models::Vector19d x_;
   models::Matrix18d F_, Q_, Phi_, Qacc_, tmp_;

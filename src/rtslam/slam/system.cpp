@@ -16,8 +16,9 @@ System::System(World& world, Map& map, std::unique_ptr<MapManager> map_manager)
 FrameStats System::process(const RawData& raw) {
   const auto t0 = std::chrono::steady_clock::now();
   Sensor* sensor = nullptr;
-  for (Sensor* s : map_.sensors())
-    if (s->id() == raw.sensor_id) sensor = s;
+  for (const auto& r : map_.robots())  // (not Map::sensors(): its list would be allocated every frame)
+    for (const auto& s : r->sensors())
+      if (s->id() == raw.sensor_id) sensor = s.get();
   if (!sensor) throw DataError(fmt::format("datum at t = {} ns names unknown sensor {}", raw.t, raw.sensor_id));
   if (!sensor->data_manager()) throw ConfigError(fmt::format("sensor '{}' has no data manager", sensor->name()));
   FrameStats stats;

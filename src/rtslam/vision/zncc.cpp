@@ -636,8 +636,11 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
         if (is_max) candidates_.push_back({c, box.x + 2 * cx, box.y + 2 * cy});
       }
     }
-    std::stable_sort(candidates_.begin(), candidates_.end(),
-                     [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+    // Best first, ties in the raster order they were found in (what a stable sort gives, without its buffer).
+    std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+      if (a.score != b.score) return a.score > b.score;
+      return a.v < b.v || (a.v == b.v && a.u < b.u);
+    });
     // 2. Full resolution: a hill climb through 8-neighbourhoods from each candidate; the best end point wins
     // (first maximum in candidate order).
     for (const Candidate& cand : candidates_) {

@@ -52,6 +52,8 @@ io::FrameStats to_io(const slam::FrameStats& s) {
   f.initialized = s.initialized;
   f.ransac_inliers = s.ransac_inliers;
   f.t_predict_ms = s.time_predict_ms;
+  f.t_match_ms = s.time_match_ms;
+  f.t_ransac_ms = s.time_ransac_ms;
   f.t_update_ms = s.time_update_ms;
   f.t_init_ms = s.time_init_ms;
   f.t_map_ms = s.time_map_ms;
@@ -182,6 +184,19 @@ void run_dataset(const RunOptions& ro) {
   times.reserve(result.frames.size());
   for (const auto& s : result.frames) times.push_back(s.time_total_ms);
   const io::Percentiles timing = io::percentiles(times);
+  // Median of each stage (frames.csv has them per frame).
+  const auto stage_median = [&](double slam::FrameStats::*field) {
+    std::vector<double> v;
+    v.reserve(result.frames.size());
+    for (const auto& s : result.frames) v.push_back(s.*field);
+    return io::percentiles(v).median;
+  };
+  const nlohmann::json stages = {{"predict", stage_median(&slam::FrameStats::time_predict_ms)},
+                                 {"match", stage_median(&slam::FrameStats::time_match_ms)},
+                                 {"ransac", stage_median(&slam::FrameStats::time_ransac_ms)},
+                                 {"update", stage_median(&slam::FrameStats::time_update_ms)},
+                                 {"init", stage_median(&slam::FrameStats::time_init_ms)},
+                                 {"map", stage_median(&slam::FrameStats::time_map_ms)}};
 
   nlohmann::json summary;
   summary["mode"] = result.inertial ? "inertial-monocular EKF-SLAM: IMU-driven prediction, active search, one-point "
@@ -221,6 +236,7 @@ void run_dataset(const RunOptions& ro) {
                           {"created", result.landmarks_created},
                           {"euclidean_final", result.euclidean_final}};
   summary["timing_ms"] = io::to_json(timing);
+  summary["timing_stage_median_ms"] = stages;
   // Matched landmarks per frame, over every frame and after the first second (the map is being built then).
   int min_matched = std::numeric_limits<int>::max(), min_matched_after_1s = std::numeric_limits<int>::max();
   for (const auto& s : result.frames) {
@@ -255,12 +271,14 @@ void run_dataset(const RunOptions& ro) {
   std::cout << fmt::format(
       "rtslam run on {} ({}), seed {}: {} frames\n"
       "  landmarks: {} in map at the end ({} Euclidean), {} created; matched per frame: min {} ({} after 1 s)\n"
-      "  per-frame time: median {:.3f} ms, p90 {:.3f} ms, max {:.3f} ms\n"
+      "  per-frame time: median {:.3f} ms, p90 {:.3f} ms, max {:.3f} ms (stage medians: predict {:.3f}, match "
+      "{:.3f}, ransac {:.3f}, update {:.3f}, init {:.3f}, map {:.3f})\n"
       "{}{}  outputs in {}/\n",
       ds.name, ds.kind, o.seed, result.frames.size(), result.landmarks_final, result.euclidean_final,
       result.landmarks_created, result.frames.empty() ? 0 : min_matched,
       min_matched_after_1s == std::numeric_limits<int>::max() ? 0 : min_matched_after_1s, timing.median, timing.p90,
-      timing.max, accuracy_line,
+      timing.max, stages["predict"].get<double>(), stages["match"].get<double>(), stages["ransac"].get<double>(),
+      stages["update"].get<double>(), stages["init"].get<double>(), stages["map"].get<double>(), accuracy_line,
       result.inertial
           ? fmt::format("  IMU: {}; {} samples, {} gyro / {} accel saturated; {} images before the start\n",
                         result.inertial_start, result.imu_samples, result.imu_gyro_saturated,

@@ -83,6 +83,11 @@ TEST(Cli, DemoRunWritesOutputsAndItsConfigReproducesIt) {
     ++rows;
   }
   EXPECT_GT(rows, 100);
+  // The timing report: per-frame percentiles and the stage medians, the matching stage measured.
+  const std::string summary = read_file(a / "summary.json");
+  EXPECT_NE(summary.find("\"timing_ms\""), std::string::npos);
+  EXPECT_NE(summary.find("\"timing_stage_median_ms\""), std::string::npos);
+  EXPECT_NE(r.out.find("stage medians: predict"), std::string::npos) << r.out;
   const Result r2 = run("run --config " + (a / "config.yaml").string() + " --quiet --out " + b.string());
   ASSERT_EQ(r2.code, 0) << r2.out;
   EXPECT_EQ(read_file(a / "trajectory.txt"), read_file(b / "trajectory.txt"));

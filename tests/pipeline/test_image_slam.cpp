@@ -65,6 +65,21 @@ TEST(ImageSlam, EurocStandstillStaysPutWhileUncertaintyShrinks) {
   std::printf("position sigma: %.5f m at 1 s, %.5f m at the end\n", sigma_1s, sigma_end);
   EXPECT_LT(sigma_end, sigma_1s);
   EXPECT_LT(sigma_end, 0.01 * median_depth);
+  // The per-stage times (frames.csv) are measured, non-negative, and add up to at most the frame's total.
+  for (const slam::FrameStats& f : r.frames) {
+    for (double t : {f.time_predict_ms, f.time_match_ms, f.time_ransac_ms, f.time_update_ms, f.time_init_ms,
+                     f.time_map_ms})
+      EXPECT_GE(t, 0.0);
+    EXPECT_LE(f.time_predict_ms + f.time_match_ms + f.time_ransac_ms + f.time_update_ms + f.time_init_ms +
+                  f.time_map_ms,
+              f.time_total_ms * (1.0 + 1e-9) + 1e-6);
+    if (f.searched > 0) {
+      EXPECT_GT(f.time_match_ms, 0.0);
+    }
+    if (f.ransac_inliers > 0) {
+      EXPECT_GT(f.time_ransac_ms, 0.0);
+    }
+  }
 }
 
 TEST(ImageSlam, SameRunTwiceGivesIdenticalTrajectories) {

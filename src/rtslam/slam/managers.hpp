@@ -29,8 +29,11 @@ struct FrameStats {
   int reparametrized = 0;
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map
-  double time_predict_ms = 0.0;
-  double time_update_ms = 0.0;
+  // Wall times of the frame's stages; predict + match + ransac + update + init + map ≈ total.
+  double time_predict_ms = 0.0;  // robots to the datum's time, observation predictions
+  double time_match_ms = 0.0;    // appearance matching (ZNCC searches), in every stage
+  double time_ransac_ms = 0.0;   // one-point RANSAC: hypotheses, their support and the batched update, not matching
+  double time_update_ms = 0.0;   // the other updates (gated active search), not matching
   double time_init_ms = 0.0;
   double time_map_ms = 0.0;
   double time_total_ms = 0.0;

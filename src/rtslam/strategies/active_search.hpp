@@ -133,6 +133,7 @@ class ActiveSearchDataManager final : public slam::DataManager {
   const slam::MapManager& map_manager_;
   InitGrid grid_;
   Rng rng_;
+  double match_ms_ = 0.0;              // time spent in search() this frame
   vision::ZnccMatcher matcher_;        // full ellipses (two-level as configured)
   vision::ZnccMatcher matcher_small_;  // tiny RANSAC boxes: exhaustive
   vision::HarrisDetector harris_;

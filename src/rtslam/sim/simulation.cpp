@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <numbers>
 #include <utility>
+#include <variant>
 
 #include <fmt/format.h>
 
@@ -49,6 +50,28 @@ io::CameraCalibration SimConfig::euroc_cam0() {
   // The file's rotation is orthonormal to ~1e-9 only: re-orthonormalize so that T_RS is an exact rigid transform.
   Eigen::Matrix3d R = Eigen::Quaterniond(T.topLeftCorner<3, 3>()).normalized().toRotationMatrix();
   c.T_RS.linear() = R;
+  c.T_RS.translation() = T.topRightCorner<3, 1>();
+  return c;
+}
+
+io::CameraCalibration SimConfig::euroc_cam1() {
+  io::CameraCalibration c;
+  c.name = "cam1";
+  c.width = 752;
+  c.height = 480;
+  c.rate_hz = 20.0;
+  c.fx = 457.587;
+  c.fy = 456.134;
+  c.cx = 379.999;
+  c.cy = 255.238;
+  c.distortion = io::DistortionModel::RadTan;
+  c.distortion_coeffs = {-0.28368365, 0.07451284, -0.00010473, -3.55590700e-05};
+  Eigen::Matrix4d T;
+  T << 0.0125552670891, -0.999755099723, 0.0182237714554, -0.0198435579556,  //
+      0.999598781151, 0.0130119051815, 0.0251588363115, 0.0453689425024,     //
+      -0.0253898008918, 0.0179005838253, 0.999517347078, 0.00786212447038,   //
+      0.0, 0.0, 0.0, 1.0;
+  c.T_RS.linear() = Eigen::Quaterniond(T.topLeftCorner<3, 3>()).normalized().toRotationMatrix();
   c.T_RS.translation() = T.topRightCorner<3, 1>();
   return c;
 }
@@ -109,7 +132,10 @@ SimConfig SimConfig::from_yaml(YamlMap& m, SimConfig c, const std::string& dir) 
   m.get("start_time", c.start_time_s);
   m.get("trajectory", c.trajectory);
   if (c.trajectory.rfind("follow:", 0) == 0) c.trajectory = "follow:" + resolve(c.trajectory.substr(7), dir);
+  if (c.recorded()) c.trajectory = "recorded:" + resolve(c.trajectory.substr(9), dir);
   m.get("follow_knot_spacing", c.follow_knot_spacing_s);
+  m.get("start_offset", c.start_offset_s);
+  m.get("stereo", c.stereo);
   if (m.has("world")) {
     const YAML::Node w = m.node()["world"];
     if (w.IsScalar()) {
@@ -174,10 +200,16 @@ void SimConfig::validate() const {
                 follow_knot_spacing_s, "in [0.005, 1] s");
   require_bound(camera.rate_hz > 0.0 && camera.rate_hz <= 1000.0, where, "camera.rate_hz", camera.rate_hz,
                 "in (0, 1000] Hz");
-  if (trajectory != "handheld" && trajectory != "high-dynamic" && trajectory.rfind("follow:", 0) != 0)
-    throw ConfigError(fmt::format("{}: trajectory = '{}' must be handheld, high-dynamic or follow:FILE", where,
-                                  trajectory));
+  if (trajectory != "handheld" && trajectory != "high-dynamic" && trajectory.rfind("follow:", 0) != 0 && !recorded())
+    throw ConfigError(fmt::format("{}: trajectory = '{}' must be handheld, high-dynamic, follow:FILE or recorded:DIR",
+                                  where, trajectory));
   if (trajectory == "follow:") throw ConfigError(fmt::format("{}: trajectory 'follow:' needs a file", where));
+  if (trajectory == "recorded:") throw ConfigError(fmt::format("{}: trajectory 'recorded:' needs a folder", where));
+  require_bound(start_offset_s >= 0.0 && start_offset_s < 1e6, where, "start_offset", start_offset_s, "in [0, 1e6) s");
+  if (start_offset_s > 0.0 && (trajectory == "handheld" || trajectory == "high-dynamic"))
+    throw ConfigError(fmt::format("{}: start_offset applies to follow:FILE and recorded:DIR trajectories only", where));
+  if (recorded() && !imu_enabled)
+    throw ConfigError(fmt::format("{}: a recorded:DIR trajectory replays the recorded IMU: imu.enabled must be true", where));
   world.validate(where + " world");
   imu.validate(where + " imu");
   require_bound(render.supersampling >= 1 && render.supersampling <= 8, where, "camera.supersampling",
@@ -198,7 +230,47 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
   const std::uint64_t traj_seed = config_.trajectory_seed.value_or(config_.seed);
   const TimeNs t_start = from_seconds(config_.start_time_s);
   const bool follow = config_.trajectory.rfind("follow:", 0) == 0;
-  if (follow) {
+  const bool recorded = config_.recorded();
+  std::optional<Trajectory> recorded_states;
+  std::vector<io::ImuSample> recorded_imu;
+  if (recorded) {
+    // The folder's calibrations (cameras relative to the IMU) and recorded streams; images of the folder are not
+    // read (the renderer makes them).
+    const std::string dir = config_.trajectory.substr(9);
+    const fs::path root = fs::is_directory(fs::path(dir) / "mav0") ? fs::path(dir) / "mav0" : fs::path(dir);
+    const fs::path states = root / "state_groundtruth_estimate0" / "data.csv";
+    if (!fs::is_regular_file(states))
+      throw ConfigError(fmt::format("simulation '{}': recorded:{} has no {} to follow", config_.name, dir,
+                                    states.string()));
+    if (!fs::is_regular_file(root / "imu0" / "sensor.yaml"))
+      throw ConfigError(fmt::format("simulation '{}': recorded:{} has no imu0/sensor.yaml", config_.name, dir));
+    // Cameras relative to the IMU (our robot frame R): T_RS = T_BI⁻¹ T_BS with EuRoC's body frame B.
+    const io::ImuCalibration imu_cal = io::load_euroc_imu((root / "imu0" / "sensor.yaml").string());
+    const auto camera_of = [&](int c) {
+      io::CameraCalibration cam = io::load_euroc_camera((root / fmt::format("cam{}", c) / "sensor.yaml").string());
+      cam.T_RS = imu_cal.T_RS.inverse() * cam.T_RS;
+      return cam;
+    };
+    const RenderOptions keep_render = config_.render;
+    config_.camera = camera_of(0);
+    if (config_.stereo) config_.camera1 = camera_of(1);
+    config_.render = keep_render;
+    config_.imu.rate_hz = imu_cal.rate_hz;
+    config_.imu.noise.gyro_noise_density = imu_cal.gyro_noise_density;
+    config_.imu.noise.gyro_random_walk = imu_cal.gyro_random_walk;
+    config_.imu.noise.accel_noise_density = imu_cal.accel_noise_density;
+    config_.imu.noise.accel_random_walk = imu_cal.accel_random_walk;
+    recorded_states = io::read_trajectory(states.string(), io::TrajectoryFormat::EurocCsv);
+    if (recorded_states->poses.size() < 2)
+      throw DataError(fmt::format("{}: fewer than 2 states to follow", states.string()));
+    io::DatasetOptions imu_only;
+    imu_only.cameras = {};
+    io::Dataset stream = io::open_dataset("euroc:" + dir, imu_only);
+    while (auto m = stream.source->next())
+      if (const auto* s = std::get_if<io::ImuSample>(&*m)) recorded_imu.push_back(*s);
+    if (recorded_imu.empty()) throw DataError(fmt::format("{}/imu0/data.csv: no IMU sample", dir));
+    trajectory_ = std::make_unique<RecordedTrajectory>(*recorded_states);
+  } else if (follow) {
     trajectory_ = make_follow(config_.trajectory.substr(7), config_.follow_knot_spacing_s);
   } else {
     const WorldConfig& w = config_.world;
@@ -208,13 +280,17 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
                       ? make_handheld(traj_seed, center, config_.duration_s + 1.0, t_start)
                       : make_high_dynamic(traj_seed, center, config_.duration_s + 1.0, t_start);
   }
-  const TimeNs t0 = trajectory_->t_begin();
+  const TimeNs t0 = trajectory_->t_begin() + from_seconds(config_.start_offset_s);
+  if (t0 >= trajectory_->t_end())
+    throw ConfigError(fmt::format("simulation '{}': start_offset = {} s is past the end of {} ({:.1f} s long)",
+                                  config_.name, config_.start_offset_s, trajectory_->describe(),
+                                  to_seconds(trajectory_->t_end() - trajectory_->t_begin())));
   const TimeNs t1 = std::min(trajectory_->t_end(), t0 + from_seconds(config_.duration_s));
 
   // The world must contain the path with some room around it.
   std::vector<Vector3d> path;
   for (TimeNs t = t0; t <= t1; t += 50'000'000) path.push_back(trajectory_->at(t).p_WR);
-  if (follow) {
+  if (follow || recorded) {
     const int removed = config_.world.fit_to_points(path, 1.0, 0.3);
     log->info("world fitted around {}: room {:.1f} x {:.1f} x {:.1f} m, {} obstacle(s) removed from the path",
               trajectory_->describe(), config_.world.room_size.x(), config_.world.room_size.y(),
@@ -228,13 +304,14 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
                                     config_.name, trajectory_->describe(), 0.05 * static_cast<double>(i), path[i].x(),
                                     path[i].y(), path[i].z()));
 
-  camera_ = std::make_unique<models::PinholeCamera>(to_intrinsics(config_.camera));
-  renderer_ = std::make_unique<Renderer>(*world_, *camera_, config_.render);
-  T_RS_.q = Eigen::Quaterniond(config_.camera.T_RS.rotation()).normalized();
-  T_RS_.p = config_.camera.T_RS.translation();
-
-  // Rig.
+  // Cameras and the rig.
   rig_.cameras = {config_.camera};
+  if (config_.stereo) rig_.cameras.push_back(config_.camera1);
+  for (const io::CameraCalibration& cal : rig_.cameras) {
+    cameras_.push_back(std::make_unique<models::PinholeCamera>(to_intrinsics(cal)));
+    renderers_.push_back(std::make_unique<Renderer>(*world_, *cameras_.back(), config_.render));
+    T_RS_.push_back(math::Pose{Eigen::Quaterniond(cal.T_RS.rotation()).normalized(), cal.T_RS.translation()});
+  }
   if (config_.imu_enabled) {
     io::ImuCalibration imu;
     imu.rate_hz = config_.imu.rate_hz;
@@ -247,6 +324,33 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
     rig_.imu = imu;
   }
 
+  ground_truth_.source = "simulation:" + config_.name;
+  if (recorded) {
+    // Images at the recorded states' timestamps (EuRoC's camera timestamps), the recorded IMU over the same window,
+    // the recorded states as the ground truth.
+    for (const StampedPose& p : recorded_states->poses) {
+      if (p.t < t0 || p.t > t1) continue;
+      image_times_.push_back(p.t);
+      ground_truth_.poses.push_back(p);
+    }
+    for (const io::ImuSample& m : recorded_imu) {
+      if (m.t < t0 || m.t > t1) continue;
+      SynthImuSample s;
+      s.t = m.t;
+      s.gyro = m.gyro;
+      s.accel = m.accel;
+      imu_.push_back(s);
+    }
+    if (image_times_.empty() || imu_.empty())
+      throw DataError(fmt::format("simulation '{}': the window [{:.3f}, {:.3f}] s of {} holds {} states and {} IMU "
+                                  "samples", config_.name, to_seconds(t0), to_seconds(t1), trajectory_->describe(),
+                                  image_times_.size(), imu_.size()));
+    log->info("simulation '{}': {}, {:.1f} s, {} images x {} camera(s) at the recorded timestamps, {} recorded IMU "
+              "samples, seed {}", config_.name, trajectory_->describe(), to_seconds(t1 - t0), image_times_.size(),
+              cameras_.size(), imu_.size(), config_.seed);
+    return;
+  }
+
   // Image times: t0 + k / rate (exact ns from the rate's period; the exposure centre is the timestamp).
   const double period_ns = 1e9 / config_.camera.rate_hz;
   for (std::size_t k = 0;; ++k) {
@@ -256,7 +360,6 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
   }
 
   // IMU samples (all at once: cheap, and the ground truth needs the biases).
-  ground_truth_.source = "simulation:" + config_.name;
   if (config_.imu_enabled) {
     ImuSynthesizer synth(*trajectory_, config_.imu, Rng(mix_seed(config_.seed, 1)));
     const double imu_period_ns = 1e9 / config_.imu.rate_hz;
@@ -285,24 +388,27 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
   } else {
     for (TimeNs t : image_times_) ground_truth_.poses.push_back(gt_pose(t));
   }
-  log->info("simulation '{}': {}, {:.1f} s, {} images at {} Hz, {} IMU samples, seed {}", config_.name,
-            trajectory_->describe(), to_seconds(t1 - t0), image_times_.size(), config_.camera.rate_hz, imu_.size(),
-            config_.seed);
+  log->info("simulation '{}': {}, {:.1f} s, {} images x {} camera(s) at {} Hz, {} IMU samples, seed {}", config_.name,
+            trajectory_->describe(), to_seconds(t1 - t0), image_times_.size(), cameras_.size(), config_.camera.rate_hz,
+            imu_.size(), config_.seed);
 }
 
-math::Pose Simulation::camera_pose(TimeNs t) const {
+math::Pose Simulation::camera_pose(TimeNs t, int c) const {
   const KinematicState s = trajectory_->at(t);
   math::Pose T_WR;
   T_WR.q = s.q_WR;
   T_WR.p = s.p_WR;
-  return T_WR * T_RS_;
+  return T_WR * T_RS_.at(static_cast<std::size_t>(c));
 }
 
-cv::Mat Simulation::render_image(std::size_t k) const {
+cv::Mat Simulation::render_image(std::size_t k, int c) const {
   const TimeNs t = image_times_.at(k);
+  const Renderer& renderer = *renderers_.at(static_cast<std::size_t>(c));
   std::vector<math::Pose> poses;
-  for (double dt : renderer_->pose_time_offsets()) poses.push_back(camera_pose(t + from_seconds(dt)));
-  return renderer_->render(poses, mix_seed(config_.seed, 2, k));
+  for (double dt : renderer.pose_time_offsets()) poses.push_back(camera_pose(t + from_seconds(dt), c));
+  // Camera 0 keeps the noise stream it always had (same images as before stereo existed).
+  const std::uint64_t stream = c == 0 ? 2 : 2 + 16 * static_cast<std::uint64_t>(c);
+  return renderer.render(poses, mix_seed(config_.seed, stream, k));
 }
 
 namespace {
@@ -323,19 +429,26 @@ class SimSource final : public io::Source {
     }
     io::ImageFrame f;
     f.t = img[img_pos_];
-    f.camera = 0;
-    f.image = sim_->render_image(img_pos_);
-    f.path = fmt::format("sim:{}#{}", sim_->config().name, img_pos_);
-    ++img_pos_;
+    f.camera = cam_;
+    f.image = sim_->render_image(img_pos_, cam_);
+    f.path = cam_ == 0 ? fmt::format("sim:{}#{}", sim_->config().name, img_pos_)
+                       : fmt::format("sim:{}#{}/cam{}", sim_->config().name, img_pos_, cam_);
+    if (++cam_ == sim_->camera_count()) {
+      cam_ = 0;
+      ++img_pos_;
+    }
     ++stats_.images;
     return f;
   }
   const io::SourceStats& stats() const override { return stats_; }
-  std::optional<std::size_t> image_count() const override { return sim_->image_times().size(); }
+  std::optional<std::size_t> image_count() const override {
+    return sim_->image_times().size() * static_cast<std::size_t>(sim_->camera_count());
+  }
 
  private:
   std::shared_ptr<const Simulation> sim_;
   std::size_t imu_pos_ = 0, img_pos_ = 0;
+  int cam_ = 0;
   io::SourceStats stats_;
 };
 
@@ -356,11 +469,20 @@ io::Dataset Simulation::make_dataset() const {
   return ds;
 }
 
-void Simulation::write_euroc(const std::string& dir) const {
+void Simulation::write_euroc(const std::string& dir, bool hide_ground_truth) const {
   fs::create_directories(dir);
   io::EurocWriter writer(dir, rig_);
   for (const SynthImuSample& s : imu_) writer.add_imu(io::ImuSample{s.t, s.gyro, s.accel});
-  for (std::size_t k = 0; k < image_times_.size(); ++k) writer.add_image(0, image_times_[k], render_image(k));
+  for (std::size_t k = 0; k < image_times_.size(); ++k)
+    for (int c = 0; c < camera_count(); ++c) writer.add_image(c, image_times_[k], render_image(k, c));
+  if (hide_ground_truth) {
+    writer.close();
+    const fs::path gt_dir = fs::path(dir) / "groundtruth";
+    fs::create_directories(gt_dir);
+    io::write_trajectory_csv((gt_dir / "state.csv").string(), ground_truth_);
+    io::write_tum((gt_dir / "groundtruth.txt").string(), ground_truth_);
+    return;
+  }
   writer.write_ground_truth(ground_truth_);
   writer.close();
   io::write_tum((fs::path(dir) / "groundtruth.txt").string(), ground_truth_);

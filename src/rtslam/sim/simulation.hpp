@@ -9,6 +9,13 @@
 // camera at 50 Hz, 45 s), "hall" (a larger hall with random boxes, hand-held, 30 s). YAML format in
 // docs/simulator.md and config/sim/*.yaml.
 //
+// Recorded mode (`trajectory: recorded:DIR`, DIR an EuRoC/ASL folder): the robot follows the folder's recorded state
+// trajectory (state_groundtruth_estimate0/data.csv) exactly (RecordedTrajectory, no smoothing), the IMU stream is the
+// folder's RECORDED imu0/data.csv (nothing synthesized: real noise, vibration, biases), images are rendered at the
+// recorded state timestamps (EuRoC writes its state at the camera timestamps) with the folder's calibrations
+// (cam0, and cam1 with `stereo`), and the ground truth is the recorded state. `start_offset` and `duration` cut a
+// window of the recording.
+//
 // Seeds: `seed` redraws every noise source (pixel noise, IMU white noise, bias walks, initial biases);
 // `trajectory_seed` (default: = seed) draws the shape of the handheld/high-dynamic motion. The world has its own
 // `world.seed` (textures), so runs with different seeds see the same room.
@@ -39,16 +46,22 @@ struct SimConfig {
   std::optional<std::uint64_t> trajectory_seed;  // default: seed
   double duration_s = 30.0;
   double start_time_s = 1.0;         // timestamp of the first sample for synthetic trajectories
-  std::string trajectory = "handheld";  // handheld | high-dynamic | follow:FILE
+  std::string trajectory = "handheld";  // handheld | high-dynamic | follow:FILE | recorded:DIR
+  double start_offset_s = 0.0;       // follow/recorded: start this many seconds after the recording's first pose
+  bool stereo = false;               // also render camera 1 (camera1; a recorded folder's cam1)
   double follow_knot_spacing_s = 0.05;
   WorldConfig world = WorldConfig::preset("room");
   io::CameraCalibration camera = euroc_cam0();
+  io::CameraCalibration camera1 = euroc_cam1();
   RenderOptions render;
   bool imu_enabled = true;
   ImuSynthOptions imu;
 
   /// EuRoC MAV cam0 (mav0/cam0/sensor.yaml): 752x480, 20 Hz, radial-tangential, T_BS as T_RS.
   static io::CameraCalibration euroc_cam0();
+  /// EuRoC MAV cam1 (mav0/cam1/sensor.yaml): the right camera of the stereo pair, 11 cm from cam0.
+  static io::CameraCalibration euroc_cam1();
+  bool recorded() const { return trajectory.rfind("recorded:", 0) == 0; }
   /// Built-in presets (see the header comment); ConfigError for an unknown name.
   static SimConfig preset(const std::string& name);
   static std::vector<std::string> preset_names();
@@ -72,25 +85,32 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   const SimConfig& config() const { return config_; }
   const World& world() const { return *world_; }
   const ContinuousTrajectory& trajectory() const { return *trajectory_; }
-  const models::PinholeCamera& camera() const { return *camera_; }
-  /// The rig: camera 0 (T_RS), the IMU (noise densities, T_RS = identity) when enabled, t_d = 0.
+  const models::PinholeCamera& camera(int c = 0) const { return *cameras_.at(static_cast<std::size_t>(c)); }
+  int camera_count() const { return static_cast<int>(cameras_.size()); }
+  /// The rig: camera 0 (and 1 with stereo) with T_RS, the IMU (noise densities, T_RS = identity) when enabled,
+  /// t_d = 0.
   const io::Rig& rig() const { return rig_; }
+  /// Image times (every camera renders at each).
   const std::vector<TimeNs>& image_times() const { return image_times_; }
+  /// IMU samples: synthesized (with the true biases), or recorded (biases unknown: zero).
   const std::vector<SynthImuSample>& imu_samples() const { return imu_; }
-  /// Ground truth of R at every IMU sample (at every image without IMU): p, q, v, gyro and accel biases.
+  /// Ground truth of R at every IMU sample (at every image without IMU; at the recorded states in recorded mode):
+  /// p, q, v, gyro and accel biases.
   const Trajectory& ground_truth() const { return ground_truth_; }
-  /// T_WC of camera 0 at time t (T_WR(t) * T_RS).
-  math::Pose camera_pose(TimeNs t) const;
-  /// Renders image k (deterministic: its noise seed derives from (seed, k)).
-  cv::Mat render_image(std::size_t k) const;
+  /// T_WC of camera c at time t (T_WR(t) * T_RS).
+  math::Pose camera_pose(TimeNs t, int c = 0) const;
+  /// Renders image k of camera c (deterministic: its noise seed derives from (seed, k, c)).
+  cv::Mat render_image(std::size_t k, int c = 0) const;
 
   /// An in-memory stream (IMU first at equal timestamps); it keeps this simulation alive.
   std::unique_ptr<io::Source> make_source() const;
   /// The stream, rig and ground truth as an io::Dataset (kind "sim"), for `rtslam run` with no dataset.
   io::Dataset make_dataset() const;
-  /// Writes DIR/mav0/{cam0, imu0, state_groundtruth_estimate0} (EuRoC ASL) and DIR/groundtruth.txt (TUM), using
-  /// `threads` rendering threads per frame. Identical bytes for identical configs.
-  void write_euroc(const std::string& dir) const;
+  /// Writes DIR/mav0/{cam0[, cam1], imu0, state_groundtruth_estimate0} (EuRoC ASL) and DIR/groundtruth.txt (TUM),
+  /// using `threads` rendering threads per frame. Identical bytes for identical configs. With `hide_ground_truth`
+  /// the ground truth goes to DIR/groundtruth/ only (state.csv, EuRoC state CSV, and groundtruth.txt): the mav0
+  /// folder then holds what a user's recording holds, sensors and calibration, for runs that must not see it.
+  void write_euroc(const std::string& dir, bool hide_ground_truth = false) const;
 
  private:
   explicit Simulation(const SimConfig& config);
@@ -98,9 +118,9 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   SimConfig config_;
   std::unique_ptr<ContinuousTrajectory> trajectory_;
   std::unique_ptr<World> world_;
-  std::unique_ptr<models::PinholeCamera> camera_;
-  std::unique_ptr<Renderer> renderer_;
-  math::Pose T_RS_;
+  std::vector<std::unique_ptr<models::PinholeCamera>> cameras_;
+  std::vector<std::unique_ptr<Renderer>> renderers_;
+  std::vector<math::Pose> T_RS_;
   io::Rig rig_;
   std::vector<TimeNs> image_times_;
   std::vector<SynthImuSample> imu_;

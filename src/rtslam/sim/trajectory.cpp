@@ -349,6 +349,63 @@ std::unique_ptr<ContinuousTrajectory> make_high_dynamic(std::uint64_t seed, cons
   return std::make_unique<WaveTrajectory>(std::move(p));
 }
 
+RecordedTrajectory::RecordedTrajectory(const Trajectory& rec) : name_("recorded:" + rec.source) {
+  const auto& P = rec.poses;
+  if (P.size() < 2) throw DataError(fmt::format("{}: a recorded trajectory needs at least 2 poses, has {}", rec.source, P.size()));
+  for (std::size_t i = 0; i < P.size(); ++i) {
+    if (i > 0 && P[i].t <= P[i - 1].t)
+      throw DataError(fmt::format("{}: timestamps not increasing at pose {} (t = {} ns)", rec.source, i, P[i].t));
+    if (!P[i].p_WR.allFinite() || !P[i].q_WR.coeffs().allFinite() || P[i].q_WR.norm() < 0.5)
+      throw DataError(fmt::format("{}: pose {} (t = {} ns) is not a finite pose with a unit quaternion", rec.source, i,
+                                  P[i].t));
+    t_.push_back(P[i].t);
+    Quaterniond q = P[i].q_WR.normalized();
+    if (i > 0 && q.dot(q_.back()) < 0.0) q.coeffs() = -q.coeffs();  // continuous signs for the slerp
+    q_.push_back(q);
+    p_.push_back(P[i].p_WR);
+  }
+  for (std::size_t i = 0; i < P.size(); ++i) {
+    if (P[i].v_WR) {
+      v_.push_back(*P[i].v_WR);
+      continue;
+    }
+    const std::size_t a = i == 0 ? 0 : i - 1, b = std::min(i + 1, P.size() - 1);
+    v_.push_back((p_[b] - p_[a]) / to_seconds(t_[b] - t_[a]));
+  }
+}
+
+KinematicState RecordedTrajectory::at(TimeNs t) const {
+  t = std::clamp(t, t_.front(), t_.back());
+  // Interval [k, k+1] holding t (the last interval for t = t_end).
+  const auto it = std::upper_bound(t_.begin(), t_.end(), t);
+  const std::size_t k = std::min(static_cast<std::size_t>(std::max<std::ptrdiff_t>(it - t_.begin() - 1, 0)), t_.size() - 2);
+  const double h = to_seconds(t_[k + 1] - t_[k]);
+  const double s = to_seconds(t - t_[k]) / h;
+  KinematicState st;
+  st.t = t;
+  if (t == t_[k]) {
+    st.p_WR = p_[k];
+    st.q_WR = q_[k];
+  } else if (t == t_[k + 1]) {
+    st.p_WR = p_[k + 1];
+    st.q_WR = q_[k + 1];
+  } else {
+    const double s2 = s * s, s3 = s2 * s;
+    st.p_WR = (2 * s3 - 3 * s2 + 1) * p_[k] + (s3 - 2 * s2 + s) * h * v_[k] + (-2 * s3 + 3 * s2) * p_[k + 1] +
+              (s3 - s2) * h * v_[k + 1];
+    st.q_WR = q_[k] * math::exp_so3(s * math::boxminus(q_[k + 1], q_[k]));
+  }
+  // Derivatives of the Hermite basis: d/dt = (1/h) d/ds.
+  const double s2 = s * s;
+  st.v_WR = ((6 * s2 - 6 * s) * p_[k] + (3 * s2 - 4 * s + 1) * h * v_[k] + (-6 * s2 + 6 * s) * p_[k + 1] +
+             (3 * s2 - 2 * s) * h * v_[k + 1]) / h;
+  st.a_WR = ((12 * s - 6) * p_[k] + (6 * s - 4) * h * v_[k] + (-12 * s + 6) * p_[k + 1] + (6 * s - 2) * h * v_[k + 1]) /
+            (h * h);
+  st.w_R = math::boxminus(q_[k + 1], q_[k]) / h;
+  st.dw_R.setZero();
+  return st;
+}
+
 std::unique_ptr<ContinuousTrajectory> make_follow(const std::string& path, double knot_dt_s) {
   if (!(knot_dt_s > 0.0)) throw ConfigError(fmt::format("follow:{}: knot spacing {} s must be > 0", path, knot_dt_s));
   const Trajectory rec = io::read_trajectory(path);

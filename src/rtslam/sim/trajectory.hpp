@@ -124,6 +124,29 @@ class SplineTrajectory final : public ContinuousTrajectory {
   std::string name_;
 };
 
+/// A recorded state trajectory (EuRoC state CSV: poses with velocities) played back as it is: at every recorded
+/// timestamp the pose is exactly the recorded one (images rendered there match the ground truth to the bit);
+/// between two records the position is the cubic Hermite interpolant of the recorded positions and velocities
+/// (so velocity and acceleration exist and agree with the record), the orientation is the slerp of the recorded
+/// ones (constant body rate over the interval, w_R = Log(q_kᵀ q_k+1)/dt, dw_R = 0). Used where the IMU is
+/// recorded too (Simulation's recorded:DIR mode): nothing here is smoothed, so the images stay consistent with
+/// that IMU as far as the record itself is. Poses without velocity get the central difference of the positions.
+class RecordedTrajectory final : public ContinuousTrajectory {
+ public:
+  /// Needs at least 2 poses with increasing timestamps (DataError naming the source otherwise).
+  explicit RecordedTrajectory(const Trajectory& recorded);
+  KinematicState at(TimeNs t) const override;
+  TimeNs t_begin() const override { return t_.front(); }
+  TimeNs t_end() const override { return t_.back(); }
+  std::string describe() const override { return name_; }
+
+ private:
+  std::vector<TimeNs> t_;
+  std::vector<Eigen::Quaterniond> q_;
+  std::vector<Eigen::Vector3d> p_, v_;
+  std::string name_;
+};
+
 /// Low dynamics hand-held motion inside a room centred at `center` (m, W): slow sums of sinusoids with phases
 /// drawn from `seed`, a few metres of path, the camera sweeping the walls; starts at rest (2 s warm-up).
 std::unique_ptr<ContinuousTrajectory> make_handheld(std::uint64_t seed, const Eigen::Vector3d& center,

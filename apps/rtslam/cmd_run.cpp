@@ -35,6 +35,9 @@ struct RunOptions {
   std::optional<std::uint64_t> seed;
   std::optional<double> duration_s;
   std::optional<double> rate_hz;
+  double start_at_s = 0.0;
+  double stop_after_s = 0.0;
+  std::string groundtruth;
   std::optional<int> points;
   std::optional<int> overlay_frame;
   bool points_demo = false;
@@ -149,7 +152,12 @@ void run_dataset(const RunOptions& ro) {
   dopt.use_imu = o.robot == "inertial";
   dopt.cameras = {o.camera};
   dopt.rate_hz = ro.rate_hz ? *ro.rate_hz : o.rate_hz;
+  dopt.start_offset_s = ro.start_at_s;
+  dopt.duration_s = ro.stop_after_s;
   io::Dataset ds = simulated ? pipeline::make_sim_dataset(o) : io::open_dataset(ro.dataset, dopt);
+  if (simulated && (ro.start_at_s > 0.0 || ro.stop_after_s > 0.0)) {
+    ds.source = std::make_unique<io::WindowSource>(std::move(ds.source), ro.start_at_s, ro.stop_after_s);
+  }
   std::filesystem::create_directories(ro.out);
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
 
@@ -311,6 +319,11 @@ void register_run(CLI::App& app) {
       ->check(CLI::Range(10, 100000));
   sub->add_option("--overlay-frame", opts->overlay_frame,
                   "Dataset runs: write OUT/overlay_NNNNN.png of this image (0-based) with search ellipses and matches")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--start-at", opts->start_at_s,
+                  "Start this many seconds after the first measurement of the input (data before is skipped)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--stop-after", opts->stop_after_s, "Process this many seconds of input from the start (0: all)")
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--quiet", opts->quiet, "No progress line");
   sub->callback([opts] {

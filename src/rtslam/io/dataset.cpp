@@ -496,6 +496,13 @@ Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
     ds = open_video(root, options);
   }
   for (const auto& w : ds.rig.warnings) logger("io")->warn("{}", w);
+  if (options.start_offset_s != 0.0 || options.duration_s != 0.0) {
+    if (!(options.start_offset_s >= 0.0) || !(options.duration_s >= 0.0)) {
+      throw ConfigError(fmt::format("dataset '{}': start offset {} s and duration {} s must be >= 0", spec,
+                                    options.start_offset_s, options.duration_s));
+    }
+    ds.source = std::make_unique<WindowSource>(std::move(ds.source), options.start_offset_s, options.duration_s);
+  }
   return ds;
 }
 

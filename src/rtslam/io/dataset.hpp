@@ -30,6 +30,8 @@ struct DatasetOptions {
   std::string calibration;         // calibration file overriding the dataset's own
   std::string timestamps;          // timestamps file for image folders
   int max_imu_dropout = 3;         // more missing IMU samples than this in a row is a gap (reported)
+  double start_offset_s = 0.0;     // start this many seconds after the stream's first measurement (WindowSource)
+  double duration_s = 0.0;         // stop after this many seconds (0: to the end)
 };
 
 struct Dataset {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -238,6 +239,51 @@ std::optional<Measurement> IndexedSource::next() {
     return frame;
   }
   return std::nullopt;
+}
+
+bool IndexedSource::seek(TimeNs t) {
+  while (pos_ < order_.size() && order_[pos_].t < t) ++pos_;
+  return true;
+}
+
+WindowSource::WindowSource(std::unique_ptr<Source> inner, double start_offset_s, double duration_s)
+    : inner_(std::move(inner)), start_offset_s_(start_offset_s), duration_s_(duration_s) {
+  if (!inner_) throw ConfigError("a window of a stream needs a stream");
+  if (!(start_offset_s >= 0.0) || !std::isfinite(start_offset_s) || !std::isfinite(duration_s)) {
+    throw ConfigError(fmt::format("stream window: start offset {} s must be finite and >= 0, duration {} s finite",
+                                  start_offset_s, duration_s));
+  }
+}
+
+std::optional<std::size_t> WindowSource::image_count() const {
+  // Unknown inside the window, except when the window is the whole stream.
+  if (start_offset_s_ == 0.0 && duration_s_ <= 0.0) return inner_->image_count();
+  return std::nullopt;
+}
+
+std::optional<Measurement> WindowSource::next() {
+  if (!started_) {
+    started_ = true;
+    auto m = inner_->next();
+    if (!m) return std::nullopt;
+    const TimeNs t_first = time_of(*m);
+    const TimeNs t_start = t_first + from_seconds(start_offset_s_);
+    end_ = duration_s_ > 0.0 ? t_start + from_seconds(duration_s_) : std::numeric_limits<TimeNs>::max();
+    if (time_of(*m) < t_start) {
+      if (!inner_->seek(t_start)) {
+        do {
+          m = inner_->next();
+        } while (m && time_of(*m) < t_start);
+      } else {
+        m = inner_->next();
+      }
+    }
+    if (!m || time_of(*m) > end_) return std::nullopt;
+    return m;
+  }
+  auto m = inner_->next();
+  if (!m || time_of(*m) > end_) return std::nullopt;
+  return m;
 }
 
 VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size,

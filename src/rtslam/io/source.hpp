@@ -96,6 +96,26 @@ class Source {
   virtual const SourceStats& stats() const = 0;
   /// Number of images the stream will yield, when known (for progress and ETA).
   virtual std::optional<std::size_t> image_count() const { return std::nullopt; }
+  /// Moves the stream to its first measurement at or after t without decoding what it passes; false when the
+  /// source cannot (callers then read and drop).
+  virtual bool seek(TimeNs /*t*/) { return false; }
+};
+
+/// A window [first + start_offset, first + start_offset + duration] of another stream (`first`: the time of its
+/// first measurement): what lies before is skipped (without decoding where the source can seek), the stream ends
+/// after the window. duration <= 0: to the end. For starting a run anywhere in a recording.
+class WindowSource final : public Source {
+ public:
+  WindowSource(std::unique_ptr<Source> inner, double start_offset_s, double duration_s);
+  std::optional<Measurement> next() override;
+  const SourceStats& stats() const override { return inner_->stats(); }
+  std::optional<std::size_t> image_count() const override;
+
+ private:
+  std::unique_ptr<Source> inner_;
+  double start_offset_s_, duration_s_;
+  bool started_ = false;
+  TimeNs end_ = 0;
 };
 
 /// An image not yet decoded: time, camera, file and where it was listed (for messages).
@@ -126,6 +146,7 @@ class IndexedSource : public Source {
   std::optional<Measurement> next() override;
   const SourceStats& stats() const override { return stats_; }
   std::optional<std::size_t> image_count() const override { return images_.size(); }
+  bool seek(TimeNs t) override;
   /// Merges problems a reader met while parsing its lists (they count in stats()).
   void add_parse_problems(const SourceStats& parse_stats) { stats_.add_problems(parse_stats); }
 

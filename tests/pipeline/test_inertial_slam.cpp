@@ -42,40 +42,38 @@ const StampedPose& closest(const Trajectory& gt, TimeNs t) {
   });
 }
 
-// At standstill the accelerometer bias and the tilt cannot be told apart (a horizontal bias b tilts the gravity
-// estimate by b/9.81 rad): the biases start at the ground truth's (EuRoC's state CSV), as for the simulator's
-// accelerometer check; without them the tilt is printed (the bias alone accounts for it). The MAV vibrates with its
-// rotors running: the ground-truth attitude wobbles by up to 0.17° between images, so the body-frame gravity
-// directions (estimated R̂ᵀĝ, ground truth R_gtᵀ(0, 0, −1)) are compared as their means over the standstill.
+// Real EuRoC V1_01 at rest (the MAV's rotors running, 4.7 s, real images and IMU), run as a user would: the
+// estimator sees the sensors only. The start is classified standstill, the position drifts less than 5 mm from the
+// first pose (the world origin), and the body-frame gravity direction R̂ᵀĝ agrees with the ground truth's
+// R_gtᵀ(0, 0, −1) (frame-independent; compared as means over the standstill, since the ground-truth attitude wobbles
+// by up to 0.17° between images with the vibration). At standstill the accelerometer bias and the tilt cannot be told
+// apart (a horizontal bias b tilts the estimate by b/9.81 rad; V1_01's is 0.07 m/s², 0.4°): the bound is 1°.
 TEST(InertialSlam, EurocStandstillStartsAtRestStaysPutAndFindsGravity) {
   if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
-  for (const bool gt_biases : {true, false}) {
-    ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
-    o.imu.biases_from_groundtruth = gt_biases;
-    io::Dataset ds = io::open_dataset("euroc:" + kEuroc);
-    const Trajectory gt = *ds.ground_truth;
-    Eigen::Vector3d g_R_sum = Eigen::Vector3d::Zero(), g_R_gt_sum = Eigen::Vector3d::Zero();
-    auto observer = [&](const ImageSlamFrame& f) {
-      const slam::Robot& robot = *f.map->robots().front();
-      const Eigen::Vector3d g_W = f.map->state().mean(robot.block()).segment<3>(models::InertialIndex::kG);
-      g_R_sum += (robot.pose().q.conjugate() * g_W).normalized();
-      g_R_gt_sum += closest(gt, f.t).q_WR.conjugate() * Eigen::Vector3d(0.0, 0.0, -1.0);
-    };
-    const ImageSlamResult r = run_image_slam(ds, o, {}, observer);
-    ASSERT_TRUE(r.inertial);
-    ASSERT_GE(r.estimate.poses.size(), 70u);
-    double max_dp = 0.0;
-    for (const StampedPose& p : r.estimate.poses) max_dp = std::max(max_dp, (p.p_WR - closest(gt, p.t).p_WR).norm());
-    const double tilt = angle_deg(g_R_sum, g_R_gt_sum);
-    std::printf("EuRoC standstill, biases %s: %s; max position error %.2f mm over %zu frames, mean body-frame gravity "
-                "direction error %.3f deg\n", gt_biases ? "from the ground truth" : "zero prior",
-                r.inertial_start.c_str(), 1e3 * max_dp, r.estimate.poses.size(), tilt);
-    EXPECT_NE(r.inertial_start.find("standstill"), std::string::npos);
-    EXPECT_LE(max_dp, 0.005);
-    if (gt_biases) {
-      EXPECT_LE(tilt, 0.3);
-    }
-  }
+  ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
+  io::Dataset ds = io::open_dataset("euroc:" + kEuroc);
+  const Trajectory gt = *ds.ground_truth;
+  ds.ground_truth.reset();  // the run sees the sensors only
+  Eigen::Vector3d g_R_sum = Eigen::Vector3d::Zero(), g_R_gt_sum = Eigen::Vector3d::Zero();
+  auto observer = [&](const ImageSlamFrame& f) {
+    const slam::Robot& robot = *f.map->robots().front();
+    const Eigen::Vector3d g_W = f.map->state().mean(robot.block()).segment<3>(models::InertialIndex::kG);
+    g_R_sum += (robot.pose().q.conjugate() * g_W).normalized();
+    g_R_gt_sum += closest(gt, f.t).q_WR.conjugate() * Eigen::Vector3d(0.0, 0.0, -1.0);
+  };
+  const ImageSlamResult r = run_image_slam(ds, o, {}, observer);
+  ASSERT_TRUE(r.inertial);
+  ASSERT_GE(r.estimate.poses.size(), 70u);
+  const Eigen::Vector3d p0 = r.estimate.poses.front().p_WR;
+  double max_dp = 0.0;
+  for (const StampedPose& p : r.estimate.poses) max_dp = std::max(max_dp, (p.p_WR - p0).norm());
+  const double tilt = angle_deg(g_R_sum, g_R_gt_sum);
+  std::printf("EuRoC standstill: %s; largest drift from the first pose %.2f mm over %zu frames, mean body-frame "
+              "gravity direction error %.3f deg\n", r.inertial_start.c_str(), 1e3 * max_dp, r.estimate.poses.size(),
+              tilt);
+  EXPECT_NE(r.inertial_start.find("standstill"), std::string::npos);
+  EXPECT_LE(max_dp, 0.005);
+  EXPECT_LE(tilt, 1.0);
 }
 
 // Camera–IMU extrinsics estimated in the filter (imu/estimate_extrinsics): the calibration handed to the filter is

@@ -65,7 +65,6 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     s.get("state_capacity", o.state_capacity);
     s.get("max_frames", o.max_frames);
     s.get("camera", o.camera);
-    s.get("init_from_groundtruth", o.init_from_groundtruth);
     s.get("rate_hz", o.rate_hz);
     s.get("known_landmarks", o.known_landmarks);
     s.get("known_landmarks_convention", o.known_landmarks_convention);
@@ -109,7 +108,6 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["slam"]["state_capacity"] = o.state_capacity;
   root["slam"]["max_frames"] = o.max_frames;
   root["slam"]["camera"] = o.camera;
-  root["slam"]["init_from_groundtruth"] = o.init_from_groundtruth;
   root["slam"]["rate_hz"] = o.rate_hz;
   root["slam"]["known_landmarks"] = o.known_landmarks;
   root["slam"]["known_landmarks_convention"] = o.known_landmarks_convention;
@@ -132,6 +130,8 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   s["margin_px"] = a.margin_px;
   s["init_patch_size"] = a.init_patch_size;
   s["d_min"] = a.prior.d_min;
+  s["depth_prior"] = a.depth_prior;
+  s["scene_prior_min_points"] = a.scene_prior_min_points;
   s["grid"]["cells_x"] = a.grid.cells_x;
   s["grid"]["cells_y"] = a.grid.cells_y;
   s["grid"]["margin_px"] = a.grid.margin_px;
@@ -205,13 +205,19 @@ void write_overlay(const std::string& path, const cv::Mat& grey,
 
 ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame,
                                const std::function<void(const ImageSlamFrame&)>& observer) {
-  o.validate();
   if (!ds.source) throw ConfigError(fmt::format("dataset '{}' has no measurement source", ds.name));
-  if (o.camera >= static_cast<int>(ds.rig.cameras.size())) {
-    throw ConfigError(fmt::format("slam/camera = {}: dataset '{}' has {} camera(s)", o.camera, ds.name,
-                                  ds.rig.cameras.size()));
+  return run_image_slam(*ds.source, ds.rig, ds.name, o, on_frame, observer);
+}
+
+ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std::string& name,
+                               const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame,
+                               const std::function<void(const ImageSlamFrame&)>& observer) {
+  o.validate();
+  if (o.camera >= static_cast<int>(rig.cameras.size())) {
+    throw ConfigError(fmt::format("slam/camera = {}: dataset '{}' has {} camera(s)", o.camera, name,
+                                  rig.cameras.size()));
   }
-  const io::CameraCalibration& cal = ds.rig.cameras[static_cast<size_t>(o.camera)];
+  const io::CameraCalibration& cal = rig.cameras[static_cast<size_t>(o.camera)];
   const models::CameraIntrinsics intr = to_intrinsics(cal);
   const math::Pose T_RS = math::Pose::from_isometry(cal.T_RS);
   std::optional<KnownLandmarkSet> known;
@@ -221,7 +227,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
         (T_RS.p.norm() > 1e-9 || T_RS.q.angularDistance(Eigen::Quaterniond::Identity()) > 1e-9)) {
       throw ConfigError(fmt::format("slam/known_landmarks_convention = scenelib: the camera of '{}' must be the "
                                     "robot (T_RS = identity); use 'robot' when T_RS carries the frame change",
-                                    ds.name));
+                                    name));
     }
   }
 
@@ -231,12 +237,12 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   double gyro_full_scale = 0.0, accel_full_scale = 0.0;  // 0: unknown
   if (inertial) {
     if (known) throw ConfigError("slam/known_landmarks is not supported with slam/robot = inertial yet");
-    imu_params = inertial_params(ds.rig.imu, o.imu, ds.name);
-    t_d = o.imu.time_offset_s ? from_seconds(*o.imu.time_offset_s) : ds.rig.t_d;
+    imu_params = inertial_params(rig.imu, o.imu, name);
+    t_d = o.imu.time_offset_s ? from_seconds(*o.imu.time_offset_s) : rig.t_d;
     if (o.imu.gyro_saturation) gyro_full_scale = *o.imu.gyro_saturation;
-    else if (ds.rig.imu->gyro_saturation) gyro_full_scale = *ds.rig.imu->gyro_saturation;
+    else if (rig.imu->gyro_saturation) gyro_full_scale = *rig.imu->gyro_saturation;
     if (o.imu.accel_saturation) accel_full_scale = *o.imu.accel_saturation;
-    else if (ds.rig.imu->accel_saturation) accel_full_scale = *ds.rig.imu->accel_saturation;
+    else if (rig.imu->accel_saturation) accel_full_scale = *rig.imu->accel_saturation;
   }
 
   slam::World world;
@@ -271,7 +277,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
 
   ImageSlamResult result;
   result.inertial = inertial;
-  const auto total = ds.source->image_count();
+  const auto total = source.image_count();
   const int n_total = total ? static_cast<int>(*total) : 0;
   // One entry per image: reserved when the count is known, so that the frame loop does not reallocate them.
   result.frames.reserve(static_cast<std::size_t>(n_total));
@@ -284,20 +290,11 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   RingBuffer<io::ImageFrame> waiting(8);     // images not yet covered by the IMU
   std::optional<TimeNs> last_imu_t;
 
-  const auto ground_truth_at = [&](TimeNs t) -> const StampedPose* {
-    if (!o.init_from_groundtruth || !ds.ground_truth || ds.ground_truth->poses.empty()) return nullptr;
-    const auto& gt = ds.ground_truth->poses;
-    return &*std::min_element(gt.begin(), gt.end(), [&](const StampedPose& a, const StampedPose& b) {
-      return std::abs(a.t - t) < std::abs(b.t - t);
-    });
-  };
-
   // Starts the filter at time t (the first image); false while the inertial window is incomplete.
   const auto start = [&](TimeNs t) -> bool {
     if (inertial) {
       if (imu_window.empty() || imu_window.front().t > t - from_seconds(o.imu.init_window_s)) return false;
-      const InertialStart s0 =
-          initialize_inertial(imu_window, t, o.imu, ground_truth_at(t), ground_truth_at(t - from_seconds(o.imu.init_window_s)));
+      const InertialStart s0 = initialize_inertial(imu_window, t, o.imu);
       result.inertial_start = s0.describe();
       logger("slam")->info("inertial robot: {}", result.inertial_start);
       robot = &map.add_robot(std::move(robot_ptr), s0.x, s0.P, t);
@@ -305,13 +302,9 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
       imu_window.clear();
       imu_window.shrink_to_fit();
     } else {
-      // The gauge: the first pose (ground truth at the first image, or identity) with zero covariance.
+      // The gauge: the first pose is the world frame (identity), with zero covariance.
       Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
       x0.segment<4>(3) << 1.0, 0.0, 0.0, 0.0;
-      if (const StampedPose* g = ground_truth_at(t)) {
-        x0.head<3>() = g->p_WR;
-        x0.segment<4>(3) = math::quat_to_wxyz(g->q_WR);
-      }
       Eigen::MatrixXd P0 = Eigen::MatrixXd::Zero(12, 12);
       P0.bottomRightCorner<6, 6>() =
           o.initial_velocity_std * o.initial_velocity_std * Eigen::MatrixXd::Identity(6, 6);
@@ -363,7 +356,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
   };
 
   while (!stop) {
-    auto m = ds.source->next();
+    auto m = source.next();
     if (!m) break;
     if (const auto* imu = std::get_if<io::ImuSample>(&*m)) {
       if (!inertial) continue;
@@ -429,7 +422,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
     result.T_RS_estimate = sensor.T_RS(map.state().mean_vector());
     result.T_RS_std = map.state().cov(sensor.block()).diagonal().cwiseSqrt();
   }
-  if (robot == nullptr) throw DataError(fmt::format("dataset '{}' has no image of camera {}", ds.name, o.camera));
+  if (robot == nullptr) throw DataError(fmt::format("dataset '{}' has no image of camera {}", name, o.camera));
   const Eigen::VectorXd& mean = map.state().mean_vector();
   const Eigen::Vector3d p_WS = sensor.pose_in_world(mean).p;
   for (const auto& l : map.landmarks()) {
@@ -453,7 +446,7 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const
     result.landmark_depths.push_back((p - p_WS).norm());
   }
   result.landmarks_final = static_cast<int>(map.landmarks().size());
-  result.estimate.source = fmt::format("rtslam image SLAM on {}", ds.name);
+  result.estimate.source = fmt::format("rtslam image SLAM on {}", name);
   return result;
 }
 

@@ -5,13 +5,14 @@
 // constant-velocity (IMU samples ignored) or inertial (slam/robot: inertial): IMU samples drive the prediction, an
 // image at t_cam is processed once the IMU covers t_cam + t_d (trajectories are stamped in that IMU clock), and the
 // filter starts at the first image with `imu/init_window` seconds of IMU before it (inertial_init.hpp).
-// The first robot pose is, in this order: the known-landmark set's initial state (its points then fix scale and
-// frame, see known_landmarks.hpp), the ground truth's at the first image (so outputs compare directly), identity;
-// without known landmarks it has zero covariance (the gauge). Seeded: the same options and data give
-// the same output.
+// The estimator sees the sensors and their calibration only (a Source and a Rig): the first robot pose is the
+// known-landmark set's initial state when there is one (its points then fix scale and frame, see
+// known_landmarks.hpp), else the world frame itself — identity for the constant-velocity robot, gravity-aligned with
+// the first pose's origin and yaw for the inertial robot — with zero covariance (the gauge). Evaluation aligns the
+// estimate to a reference afterwards. Seeded: the same options and data give the same output.
 //
 // YAML layout (every key optional, unknown keys are errors naming the key; docs/configuration.md):
-//   slam:        {seed, robot: constant_velocity|inertial, consistency: none|oc, initial_velocity_std, state_capacity, max_frames, camera, init_from_groundtruth, rate_hz,
+//   slam:        {seed, robot: constant_velocity|inertial, consistency: none|oc, initial_velocity_std, state_capacity, max_frames, camera, rate_hz,
 //                 known_landmarks, known_landmarks_convention, overlay_frame, overlay_path}
 //   motion:      {sigma_v, sigma_w}                (constant-velocity robot)
 //   imu:         see inertial_init.hpp             (inertial robot)
@@ -48,7 +49,6 @@ struct ImageSlamOptions {
   int state_capacity = 600;           // covariance rows of the filter storage (>= map_manager.map_size)
   int max_frames = 0;                 // stop after this many images (0: all)
   int camera = 0;                     // index in the Rig
-  bool init_from_groundtruth = true;  // first pose from the ground truth when there is one
   double rate_hz = 0.0;               // image rate for image folders without timestamps (0: the dataset's)
   std::string known_landmarks;        // folder of a known-landmark set (known_landmarks.hpp); empty: none
   std::string known_landmarks_convention = "robot";  // that set's state: robot (as is) | scenelib (converted)
@@ -115,8 +115,13 @@ struct ImageSlamFrame {
   const std::vector<strategies::ActiveSearchDataManager::FrameMatch>* matches = nullptr;
 };
 
-/// Runs the pipeline over the dataset's images. `on_frame(done, total)` after each image taken from the stream
-/// (total 0 if unknown); `observer` after each image the filter processed.
+/// Runs the pipeline over a measurement stream and its rig calibration (`name` for messages). `on_frame(done,
+/// total)` after each image taken from the stream (total 0 if unknown); `observer` after each image the filter
+/// processed.
+ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std::string& name,
+                               const ImageSlamOptions& options, const std::function<void(int, int)>& on_frame = {},
+                               const std::function<void(const ImageSlamFrame&)>& observer = {});
+/// The same on a dataset's source and rig (its reference trajectory, if any, is for evaluation and is not read).
 ImageSlamResult run_image_slam(io::Dataset& dataset, const ImageSlamOptions& options,
                                const std::function<void(int, int)>& on_frame = {},
                                const std::function<void(const ImageSlamFrame&)>& observer = {});

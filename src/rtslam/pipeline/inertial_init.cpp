@@ -21,7 +21,6 @@ void InertialOptions::validate() const {
   require_bound(standstill_max_accel_std > 0.0, w, "standstill_max_accel_std", standstill_max_accel_std, "> 0");
   for (const auto& [key, v] : {std::pair{"velocity_std_standstill", velocity_std_standstill},
                                std::pair{"velocity_std_motion", velocity_std_motion},
-                               std::pair{"velocity_std_groundtruth", velocity_std_groundtruth},
                                std::pair{"accel_bias_std", accel_bias_std}, std::pair{"gyro_bias_std", gyro_bias_std},
                                std::pair{"gravity_std_standstill", gravity_std_standstill},
                                std::pair{"gravity_std_motion", gravity_std_motion},
@@ -30,6 +29,12 @@ void InertialOptions::validate() const {
                                std::pair{"extrinsics_std_m", extrinsics_std_m},
                                std::pair{"extrinsics_std_deg", extrinsics_std_deg}}) {
     require_bound(v > 0.0, w, key, v, "> 0");
+  }
+  for (const auto& [key, v] : {std::pair{"accelerometer_noise_density", accelerometer_noise_density},
+                               std::pair{"gyroscope_noise_density", gyroscope_noise_density},
+                               std::pair{"accelerometer_random_walk", accelerometer_random_walk},
+                               std::pair{"gyroscope_random_walk", gyroscope_random_walk}}) {
+    if (v) require_bound(*v > 0.0 && *v < 10.0, w, key, *v, "in (0, 10)");
   }
   if (time_offset_s) require_bound(std::abs(*time_offset_s) < 1.0, w, "time_offset", *time_offset_s, "within ±1 s");
   if (gyro_saturation) require_bound(*gyro_saturation > 0.0, w, "gyro_saturation", *gyro_saturation, "> 0 rad/s");
@@ -43,12 +48,10 @@ void read_inertial(YamlMap m, InertialOptions& o) {
   m.get("standstill_max_accel_std", o.standstill_max_accel_std);
   m.get("velocity_std_standstill", o.velocity_std_standstill);
   m.get("velocity_std_motion", o.velocity_std_motion);
-  m.get("velocity_std_groundtruth", o.velocity_std_groundtruth);
   m.get("accel_bias_std", o.accel_bias_std);
   m.get("gyro_bias_std", o.gyro_bias_std);
   m.get("gravity_std_standstill", o.gravity_std_standstill);
   m.get("gravity_std_motion", o.gravity_std_motion);
-  m.get("biases_from_groundtruth", o.biases_from_groundtruth);
   m.get("noise_scale", o.noise_scale);
   m.get("random_walk_scale", o.random_walk_scale);
   m.get("estimate_extrinsics", o.estimate_extrinsics);
@@ -56,6 +59,10 @@ void read_inertial(YamlMap m, InertialOptions& o) {
   m.get("extrinsics_std_deg", o.extrinsics_std_deg);
   double v = 0.0;
   if (m.has("time_offset")) { m.get("time_offset", v); o.time_offset_s = v; }
+  if (m.has("accelerometer_noise_density")) { m.get("accelerometer_noise_density", v); o.accelerometer_noise_density = v; }
+  if (m.has("gyroscope_noise_density")) { m.get("gyroscope_noise_density", v); o.gyroscope_noise_density = v; }
+  if (m.has("accelerometer_random_walk")) { m.get("accelerometer_random_walk", v); o.accelerometer_random_walk = v; }
+  if (m.has("gyroscope_random_walk")) { m.get("gyroscope_random_walk", v); o.gyroscope_random_walk = v; }
   if (m.has("gyro_saturation")) { m.get("gyro_saturation", v); o.gyro_saturation = v; }
   if (m.has("accel_saturation")) { m.get("accel_saturation", v); o.accel_saturation = v; }
   m.finish();
@@ -69,18 +76,20 @@ YAML::Node inertial_to_yaml(const InertialOptions& o) {
   n["standstill_max_accel_std"] = o.standstill_max_accel_std;
   n["velocity_std_standstill"] = o.velocity_std_standstill;
   n["velocity_std_motion"] = o.velocity_std_motion;
-  n["velocity_std_groundtruth"] = o.velocity_std_groundtruth;
   n["accel_bias_std"] = o.accel_bias_std;
   n["gyro_bias_std"] = o.gyro_bias_std;
   n["gravity_std_standstill"] = o.gravity_std_standstill;
   n["gravity_std_motion"] = o.gravity_std_motion;
-  n["biases_from_groundtruth"] = o.biases_from_groundtruth;
   n["noise_scale"] = o.noise_scale;
   n["random_walk_scale"] = o.random_walk_scale;
   n["estimate_extrinsics"] = o.estimate_extrinsics;
   n["extrinsics_std_m"] = o.extrinsics_std_m;
   n["extrinsics_std_deg"] = o.extrinsics_std_deg;
   if (o.time_offset_s) n["time_offset"] = *o.time_offset_s;
+  if (o.accelerometer_noise_density) n["accelerometer_noise_density"] = *o.accelerometer_noise_density;
+  if (o.gyroscope_noise_density) n["gyroscope_noise_density"] = *o.gyroscope_noise_density;
+  if (o.accelerometer_random_walk) n["accelerometer_random_walk"] = *o.accelerometer_random_walk;
+  if (o.gyroscope_random_walk) n["gyroscope_random_walk"] = *o.gyroscope_random_walk;
   if (o.gyro_saturation) n["gyro_saturation"] = *o.gyro_saturation;
   if (o.accel_saturation) n["accel_saturation"] = *o.accel_saturation;
   return n;
@@ -90,10 +99,10 @@ models::InertialParams inertial_params(const std::optional<io::ImuCalibration>& 
                                        const std::string& dataset) {
   if (!imu) throw ConfigError(fmt::format("slam/robot = inertial: dataset '{}' has no IMU", dataset));
   models::InertialParams p;
-  p.accelerometer_noise_density = imu->accel_noise_density * o.noise_scale;
-  p.gyroscope_noise_density = imu->gyro_noise_density * o.noise_scale;
-  p.accelerometer_random_walk = imu->accel_random_walk * o.random_walk_scale;
-  p.gyroscope_random_walk = imu->gyro_random_walk * o.random_walk_scale;
+  p.accelerometer_noise_density = o.accelerometer_noise_density.value_or(imu->accel_noise_density) * o.noise_scale;
+  p.gyroscope_noise_density = o.gyroscope_noise_density.value_or(imu->gyro_noise_density) * o.noise_scale;
+  p.accelerometer_random_walk = o.accelerometer_random_walk.value_or(imu->accel_random_walk) * o.random_walk_scale;
+  p.gyroscope_random_walk = o.gyroscope_random_walk.value_or(imu->gyro_random_walk) * o.random_walk_scale;
   if (p.accelerometer_noise_density <= 0.0 || p.gyroscope_noise_density <= 0.0) {
     throw ConfigError(fmt::format("dataset '{}': the IMU calibration has no noise densities", dataset));
   }
@@ -109,8 +118,19 @@ std::string InertialStart::describe() const {
                      x[InertialIndex::kWb], x[InertialIndex::kWb + 1], x[InertialIndex::kWb + 2]);
 }
 
-InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o,
-                                  const StampedPose* gt, const StampedPose* gt_start) {
+Eigen::Quaterniond gravity_aligned_attitude(const Eigen::Vector3d& f_R) {
+  const Eigen::Vector3d z = f_R.normalized();  // W's z axis (up) in R
+  int k = 0;                                   // the body axis most orthogonal to z
+  z.cwiseAbs().minCoeff(&k);
+  const Eigen::Vector3d x = (Eigen::Vector3d::Unit(k) - z * z[k]).normalized();  // W's x axis in R
+  Eigen::Matrix3d R_RW;
+  R_RW.col(0) = x;
+  R_RW.col(1) = z.cross(x);
+  R_RW.col(2) = z;
+  return Eigen::Quaterniond(R_RW.transpose()).normalized();  // R_WR
+}
+
+InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o) {
   const TimeNs t0 = t - from_seconds(o.init_window_s);
   std::vector<const ImuWindowSample*> in;
   Eigen::Vector3d sa = Eigen::Vector3d::Zero(), sw = Eigen::Vector3d::Zero();
@@ -140,58 +160,39 @@ InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, Ti
 
   using I = InertialIndex;
   auto& x = s.x;
-  x.segment<4>(I::kQ) << 1.0, 0.0, 0.0, 0.0;
-  const bool gt_biases = o.biases_from_groundtruth && gt && gt->gyro_bias && gt->accel_bias;
-  if (gt) {
-    x.segment<3>(I::kP) = gt->p_WR;
-    x.segment<4>(I::kQ) = math::quat_to_wxyz(gt->q_WR);
-  }
-  const Eigen::Matrix3d R = math::quat_from_wxyz(x.segment<4>(I::kQ)).toRotationMatrix();
-  if (gt_biases) {
-    x.segment<3>(I::kAb) = *gt->accel_bias;
-    x.segment<3>(I::kWb) = *gt->gyro_bias;
-  } else if (s.standstill) {
-    x.segment<3>(I::kWb) = mean_w;
-  }
-  // Gravity from the mean specific force in W: the accelerometer measures f = Rᵀ(a − g) + a_b, so over the window
-  // g = ā − mean(R_k (f_k − a_b)). Each sample is rotated into W by the gyro integrated over the window (midpoint
-  // rule, backwards from the attitude at t), so rotation during the window does not tilt the estimate. The mean
-  // acceleration ā is zero at standstill; in motion it comes from the ground-truth velocities at both ends of the
-  // window when there are any, and is otherwise unknown (zero with the large `gravity_std_motion`).
-  const Eigen::Vector3d a_b = x.segment<3>(I::kAb), w_b = x.segment<3>(I::kWb);
-  std::vector<Eigen::Matrix3d> R_t_k(static_cast<std::size_t>(n));  // R_{R(t) R(t_k)}
-  R_t_k.back() = Eigen::Matrix3d::Identity();
+  if (s.standstill) x.segment<3>(I::kWb) = mean_w;
+  // The mean specific force in R at t: the accelerometer measures f = Rᵀ(a − g) + a_b; each sample is rotated to
+  // the attitude at t by the gyro integrated over the window (midpoint rule, backwards from t), so rotation during
+  // the window does not tilt the estimate. At standstill −f is gravity; in motion it is off by the window's mean
+  // acceleration, which the gravity prior covers.
+  const Eigen::Vector3d w_b = x.segment<3>(I::kWb);
+  Eigen::Matrix3d R_t_k = Eigen::Matrix3d::Identity();  // R_{R(t) R(t_k)}
+  Eigen::Vector3d f_R = in.back()->m.accel;
   for (int k = n - 2; k >= 0; --k) {
-    const double dt = to_seconds(in[static_cast<std::size_t>(k + 1)]->t - in[static_cast<std::size_t>(k)]->t);
-    const Eigen::Vector3d w =
-        0.5 * (in[static_cast<std::size_t>(k)]->m.gyro + in[static_cast<std::size_t>(k + 1)]->m.gyro) - w_b;
-    R_t_k[static_cast<std::size_t>(k)] =
-        R_t_k[static_cast<std::size_t>(k + 1)] * math::exp_so3(w * dt).toRotationMatrix().transpose();
+    const auto& a = *in[static_cast<std::size_t>(k)];
+    const auto& b = *in[static_cast<std::size_t>(k + 1)];
+    const Eigen::Vector3d w = 0.5 * (a.m.gyro + b.m.gyro) - w_b;
+    R_t_k = R_t_k * math::exp_so3(w * to_seconds(b.t - a.t)).toRotationMatrix().transpose();
+    f_R += R_t_k * a.m.accel;
   }
-  Eigen::Vector3d f_W = Eigen::Vector3d::Zero();
-  for (int k = 0; k < n; ++k) f_W += R * R_t_k[static_cast<std::size_t>(k)] * (in[static_cast<std::size_t>(k)]->m.accel - a_b);
-  f_W /= n;
-  Eigen::Vector3d a_mean = Eigen::Vector3d::Zero();
-  const bool known_motion = !s.standstill && gt && gt_start && gt->v_WR && gt_start->v_WR && gt->t > gt_start->t;
-  if (known_motion) a_mean = (*gt->v_WR - *gt_start->v_WR) / to_seconds(gt->t - gt_start->t);
-  x.segment<3>(I::kG) = a_mean - f_W;
-  double v_std = o.velocity_std_motion;
-  if (s.standstill) {
-    v_std = o.velocity_std_standstill;
-  } else if (gt && gt->v_WR) {
-    x.segment<3>(I::kV) = *gt->v_WR;
-    v_std = o.velocity_std_groundtruth;
+  f_R /= n;
+  if (!(f_R.norm() > 1e-3) || !f_R.allFinite()) {
+    throw DataError(fmt::format("inertial initialization at t = {} ns: the mean specific force ({:.3g} m/s²) gives no "
+                                "gravity direction (free fall, or an accelerometer reading zeros)", t, f_R.norm()));
   }
+  const Eigen::Quaterniond q_WR = gravity_aligned_attitude(f_R);
+  x.segment<4>(I::kQ) = math::quat_to_wxyz(q_WR);
+  const Eigen::Matrix3d R = q_WR.toRotationMatrix();
+  x.segment<3>(I::kG) = -(R * f_R);
+  const double v_std = s.standstill ? o.velocity_std_standstill : o.velocity_std_motion;
   auto& P = s.P;
   P.block<3, 3>(I::kDv, I::kDv) = v_std * v_std * Eigen::Matrix3d::Identity();
   P.block<3, 3>(I::kDab, I::kDab) = o.accel_bias_std * o.accel_bias_std * Eigen::Matrix3d::Identity();
-  const double wb_std = s.standstill && !gt_biases ? std::max(1e-3, s.gyro_std / std::sqrt(static_cast<double>(n)))
-                                                   : o.gyro_bias_std;
+  const double wb_std = s.standstill ? std::max(1e-3, s.gyro_std / std::sqrt(static_cast<double>(n))) : o.gyro_bias_std;
   P.block<3, 3>(I::kDwb, I::kDwb) = wb_std * wb_std * Eigen::Matrix3d::Identity();
-  // g = ā − mean(R_k (f_k − a_b)): its error is the accelerometer bias error rotated into W (correlated with a_b)
-  // plus the spread of the mean (standstill, or motion with ground-truth velocities) or the unknown mean
-  // acceleration (motion).
-  const double g_std = s.standstill || known_motion ? o.gravity_std_standstill : o.gravity_std_motion;
+  // g = −R f̄ with f̄ = mean(R_k (f_k − a_b)) + a_b: its error is the accelerometer bias error rotated into W
+  // (correlated with a_b) plus the spread of the mean (standstill) or the unknown mean acceleration (motion).
+  const double g_std = s.standstill ? o.gravity_std_standstill : o.gravity_std_motion;
   P.block<3, 3>(I::kDg, I::kDg) =
       g_std * g_std * Eigen::Matrix3d::Identity() + o.accel_bias_std * o.accel_bias_std * Eigen::Matrix3d::Identity();
   P.block<3, 3>(I::kDg, I::kDab) = o.accel_bias_std * o.accel_bias_std * R;  // ∂g/∂a_b = R (at t)

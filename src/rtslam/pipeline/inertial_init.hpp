@@ -1,19 +1,21 @@
 #pragma once
 // Options and start-up of the inertial robot of the image pipeline (issue "Inertial/visual SLAM"; MATH.md
 // "Robots", inertial): the `imu:` section of a configuration, standstill detection, and the initial state
-// [p q v a_b ω_b g] with its covariance from a window of IMU samples.
+// [p q v a_b ω_b g] with its covariance from a window of IMU samples — from the sensors alone.
 //
-// Initialization uses the IMU samples of the `init_window` seconds before the first image they cover:
-//  - standstill (gyro and accelerometer spreads below thresholds measured on the real EuRoC MAV, whose rotors make
-//    it vibrate far above the datasheet densities — on V1_01, 1 s windows at rest: gyro std 0.02–0.085 rad/s,
-//    accelerometer std 0.3–1.5 m/s²; in flight gyro std >= 0.12 rad/s): velocity ≈ 0, gyro bias = mean gyro,
-//    gravity from the mean specific force;
-//  - motion: velocity from the ground truth when there is one, else 0 with a large prior; gravity from the mean
-//    specific force (samples rotated into W by the gyro over the window), less the window's mean acceleration when
-//    the ground truth gives the velocity at both ends, else with a larger uncertainty.
-// The gauge (p and q) has zero covariance, as for the constant-velocity robot; the attitude is the ground truth's
-// when available (init_from_groundtruth) or identity, so gravity — a state, as the paper argues — carries the
-// initial roll and pitch and their uncertainty.
+// The world frame is gravity-aligned with the origin and yaw of the first pose (as OpenVINS and ROVIO do): p = 0,
+// q rotates the window's mean specific force (each sample rotated by the gyro to the attitude at t) onto +z, with
+// the yaw that makes W's x axis the horizontal projection of the most horizontal body axis; g starts as the
+// opposite of that force, (0, 0, −|f|), and stays a state (the paper: better for linearity than constraining q).
+// The gauge (p and q) has zero covariance. Velocity, biases and gravity get priors:
+//  - standstill (`init: standstill`, or `auto` when the gyro and accelerometer spreads are below thresholds measured
+//    on the real EuRoC MAV, whose rotors make it vibrate far above the datasheet densities — on V1_01, 1 s windows
+//    at rest: gyro std 0.02–0.085 rad/s, accelerometer std 0.3–1.5 m/s²): v ≈ 0 (velocity_std_standstill),
+//    gyro bias = the mean gyro, |g| from the mean specific force;
+//  - otherwise v = 0 with the broad velocity_std_motion and gravity with gravity_std_motion (the window's unknown
+//    mean acceleration). The IMU alone cannot tell a constant-velocity motion from rest, nor vibration from slow
+//    motion: the in-motion priors also hold at rest (the filter then finds v = 0 from the images), so a preset can
+//    choose conservative thresholds.
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,13 +37,17 @@ struct InertialOptions {
   double standstill_max_gyro_std = 0.1;   // rad/s (norm of the per-axis std over the window)
   double standstill_max_accel_std = 1.6;  // m/s²
   double velocity_std_standstill = 0.05;  // m/s
-  double velocity_std_motion = 1.0;       // m/s, without ground-truth velocity
-  double velocity_std_groundtruth = 0.05; // m/s, with ground-truth velocity
+  double velocity_std_motion = 1.0;       // m/s, in motion (unknown velocity)
   double accel_bias_std = 0.1;            // m/s² per axis (prior)
   double gyro_bias_std = 0.01;            // rad/s per axis (prior; standstill: the mean's spread, at least 1e-3)
   double gravity_std_standstill = 0.05;   // m/s² per axis, added to the accelerometer bias prior
   double gravity_std_motion = 1.0;        // m/s² per axis
-  bool biases_from_groundtruth = false;   // start the biases at the ground truth's (EuRoC state CSV, simulator)
+  // The noise model: the calibration's densities (sensor.yaml / imu.yaml), each replaced by its key when given,
+  // then multiplied by the scales.
+  std::optional<double> accelerometer_noise_density;  // m/s²/√Hz
+  std::optional<double> gyroscope_noise_density;      // rad/s/√Hz
+  std::optional<double> accelerometer_random_walk;    // m/s³/√Hz
+  std::optional<double> gyroscope_random_walk;        // rad/s²/√Hz
   double noise_scale = 1.0;               // multiplies the calibration's white-noise densities (vibration)
   double random_walk_scale = 1.0;         // multiplies the calibration's bias random walks
   std::optional<double> time_offset_s;    // t_imu = t_cam + t_d; default: the calibration's
@@ -76,9 +82,10 @@ struct InertialStart {
 };
 
 /// The initial state at time t from the samples of [t − window, t] (at least 10 of them; DataError otherwise).
-/// `gt` (may be null): the ground-truth pose at t (pose, and velocity/biases when it has them); `gt_start` (may be
-/// null): the ground truth at t − window, whose velocity gives the window's mean acceleration in motion.
-InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o,
-                                  const StampedPose* gt, const StampedPose* gt_start = nullptr);
+InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o);
+
+/// The gravity-aligned attitude q_WR of a body whose mean specific force (in R) is f_R: R_WR f_R ∝ +z, W's x axis
+/// along the horizontal projection of the body axis most orthogonal to f_R.
+Eigen::Quaterniond gravity_aligned_attitude(const Eigen::Vector3d& f_R);
 
 }  // namespace rtslam::pipeline

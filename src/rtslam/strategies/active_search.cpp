@@ -38,6 +38,11 @@ void ActiveSearchOptions::validate() const {
                 "init_patch_size", init_patch_size, "odd, >= zncc.patch_size and <= 101");
   grid.validate();
   prior.validate();
+  if (depth_prior != "fixed" && depth_prior != "scene") {
+    throw ConfigError(fmt::format("{}: depth_prior = '{}' must be fixed or scene", where, depth_prior));
+  }
+  require_bound(scene_prior_min_points >= 1 && scene_prior_min_points <= 1000, where, "scene_prior_min_points",
+                scene_prior_min_points, "in [1, 1000]");
   harris.validate();
   zncc.validate();
 }
@@ -57,6 +62,8 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   map.get("margin_px", o.margin_px);
   map.get("init_patch_size", o.init_patch_size);
   map.get("d_min", o.prior.d_min);
+  map.get("depth_prior", o.depth_prior);
+  map.get("scene_prior_min_points", o.scene_prior_min_points);
   {
     YamlMap g = map.child("grid");
     g.get("cells_x", o.grid.cells_x);
@@ -102,6 +109,7 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
   support_z_.reserve(512);
   best_support_z_.reserve(512);
   report_.reserve(512);
+  depths_.reserve(512);
   batch_.reserve(kMaxBatch);
   batch_blocks_.reserve(kMaxBatch + 2);
   batch_H_.resize(2 * kMaxBatch, 64 + slam::kMaxLandmarkTangent * kMaxBatch);
@@ -423,12 +431,30 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   stats.time_init_ms = std::chrono::duration<double, std::milli>(t3 - t2).count();
 }
 
+models::AhpPrior ActiveSearchDataManager::frame_prior(const slam::Map& map, const slam::Sensor& sensor) {
+  if (opt_.depth_prior == "fixed") return opt_.prior;
+  const Eigen::VectorXd& mean = map.state().mean_vector();
+  const Eigen::Vector3d p_WS = sensor.pose_in_world(mean).p;
+  depths_.clear();
+  for (const Candidate& c : candidates_) {
+    if (!c.updated || c.obs->landmark->type() != slam::LandmarkType::EuclideanPoint) continue;
+    depths_.push_back((c.obs->landmark->position(mean) - p_WS).norm());
+  }
+  if (static_cast<int>(depths_.size()) < opt_.scene_prior_min_points) return opt_.prior;
+  const auto mid = depths_.begin() + static_cast<std::ptrdiff_t>(depths_.size() / 2);
+  std::nth_element(depths_.begin(), mid, depths_.end());
+  models::AhpPrior p;
+  p.d_min = 0.5 * *mid;
+  return p.d_min > 0.0 && std::isfinite(p.d_min) ? p : opt_.prior;
+}
+
 void ActiveSearchDataManager::initialize(slam::Map& map, slam::Sensor& sensor, long frame, slam::FrameStats& stats) {
   const auto* cam_sensor = dynamic_cast<const slam::PinholeSensor*>(&sensor);
   if (cam_sensor == nullptr) return;
   const models::PinholeCamera& camera = cam_sensor->camera();
   const models::CameraIntrinsics& in = camera.intrinsics();
   const int half = opt_.init_patch_size / 2;
+  const models::AhpPrior prior = frame_prior(map, sensor);
   int inits = 0;
   for (int cell : grid_.empty_cells(rng_)) {
     if (inits >= opt_.max_inits || !map_manager_.has_room(map, 7)) break;
@@ -450,7 +476,7 @@ void ActiveSearchDataManager::initialize(slam::Map& map, slam::Sensor& sensor, l
     Eigen::Matrix2d J = Eigen::Matrix2d::Identity();
     if (!camera.distort(ray.head<2>(), xy_d, &J)) continue;
     const math::Pose T_WS = sensor.pose_in_world(map.state().mean_vector());
-    slam::Landmark* l = slam::init_ahp_landmark(map, sensor, z, opt_.sigma_px, opt_.prior, frame);
+    slam::Landmark* l = slam::init_ahp_landmark(map, sensor, z, opt_.sigma_px, prior, frame);
     if (l == nullptr) break;
     auto desc = std::make_shared<PointDescriptor>();
     desc->patch = vision::Image::copy_of(

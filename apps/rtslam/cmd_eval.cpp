@@ -20,7 +20,8 @@ namespace {
 struct EvalArgs {
   std::string est, gt, json_out, est_format = "auto", gt_format = "auto";
   std::string align = "se3", delta_unit = "frames";
-  double delta = 1.0, t_max_diff = 0.01, t_offset = 0.0;
+  double delta = 1.0, t_max_diff = 0.01, t_offset = 0.0, max_gap = 0.1;
+  bool interpolate = false;
   bool all_pairs = false, pairs_from_reference = false, series = false;
 };
 
@@ -37,6 +38,8 @@ void run_eval(const EvalArgs& a) {
   o.align = eval::parse_alignment(a.align);
   o.association.max_diff_s = a.t_max_diff;
   o.association.offset_s = a.t_offset;
+  o.association.interpolate = a.interpolate;
+  o.association.max_gap_s = a.max_gap;
   o.rpe.delta = a.delta;
   o.rpe.unit = eval::parse_delta_unit(a.delta_unit);
   o.rpe.all_pairs = a.all_pairs;
@@ -86,6 +89,11 @@ void register_eval(CLI::App& app) {
   sub->add_flag("--all-pairs", a->all_pairs, "RPE over all pairs instead of consecutive ones");
   sub->add_flag("--pairs-from-reference", a->pairs_from_reference, "choose RPE pairs on the ground truth");
   sub->add_option("--t-max-diff", a->t_max_diff, "association tolerance (s)")->capture_default_str();
+  sub->add_flag("--interpolate", a->interpolate,
+                "evaluate the ground truth at the estimate's timestamps (linear position, slerp attitude) instead of "
+                "nearest-neighbour association: for ground truth sampled at other instants than the images");
+  sub->add_option("--max-gap", a->max_gap, "--interpolate: largest gap between ground-truth poses to interpolate (s)")
+      ->capture_default_str();
   sub->add_option("--t-offset", a->t_offset, "time offset added to the estimate (s)")->capture_default_str();
   sub->add_option("--est-format", a->est_format, "auto, tum, euroc or kitti")->capture_default_str();
   sub->add_option("--gt-format", a->gt_format, "auto, tum, euroc or kitti")->capture_default_str();

@@ -16,6 +16,7 @@
 #include "commands.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/eval/metrics.hpp"
+#include "rtslam/eval/run_eval.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
 #include "rtslam/io/dataset.hpp"
@@ -172,6 +173,7 @@ void run_dataset(const RunOptions& ro) {
   io::write_tum(ro.out + "/trajectory.txt", result.estimate);
   io::write_trajectory_csv(ro.out + "/trajectory.csv", result.estimate);
   if (ds.ground_truth) io::write_tum(ro.out + "/groundtruth.txt", *ds.ground_truth);
+  else if (!ro.groundtruth.empty()) io::write_tum(ro.out + "/groundtruth.txt", io::read_trajectory(ro.groundtruth));
   {
     io::FramesCsvWriter frames(ro.out + "/frames.csv");
     for (const auto& s : result.frames) frames.write(to_io(s));
@@ -257,19 +259,21 @@ void run_dataset(const RunOptions& ro) {
     summary["matched_min"] = min_matched;
     if (min_matched_after_1s != std::numeric_limits<int>::max()) summary["matched_min_after_1s"] = min_matched_after_1s;
   }
+  // Accuracy, when a reference is at hand (--groundtruth, or the dataset's own): evaluation only, after the run.
+  std::optional<Trajectory> reference;
+  if (!ro.groundtruth.empty()) {
+    reference = io::read_trajectory(ro.groundtruth);
+  } else if (ds.ground_truth) {
+    reference = std::move(ds.ground_truth);
+  }
   std::string accuracy_line;
-  if (ds.ground_truth && result.estimate.poses.size() >= 3) {
-    eval::EvalOptions eo;
-    eo.align = eval::Alignment::Sim3;
-    eo.with_rpe = false;
+  if (reference && result.estimate.poses.size() >= 3) {
     try {
-      const eval::EvalResult ev = eval::evaluate(result.estimate, *ds.ground_truth, eo);
-      summary["accuracy"] = eval::to_json(ev, eo);
-      const double ate = ev.ate.trans_m.rmse;
-      const double pct = ev.path_length_m > 0 ? 100.0 * ate / ev.path_length_m : 0.0;
-      summary["ate_percent_of_path"] = pct;
-      accuracy_line = fmt::format("  ATE (Sim(3) aligned): RMSE {:.4f} m = {:.3f} % of the {:.2f} m path; scale {:.4f}\n",
-                                  ate, pct, ev.path_length_m, ev.sim3_scale);
+      const eval::RunAccuracy acc = eval::evaluate_accuracy(result.estimate, *reference, result.inertial);
+      summary["accuracy"] = acc.json;
+      summary["accuracy"]["reference"] = ro.groundtruth.empty() ? std::string("dataset") : ro.groundtruth;
+      summary["ate_percent_of_path"] = acc.json["ate_percent_of_path"];
+      accuracy_line = acc.line;
     } catch (const Error& e) {
       summary["accuracy_error"] = e.what();
       accuracy_line = fmt::format("  ATE not computed: {}\n", e.what());
@@ -320,6 +324,10 @@ void register_run(CLI::App& app) {
   sub->add_option("--overlay-frame", opts->overlay_frame,
                   "Dataset runs: write OUT/overlay_NNNNN.png of this image (0-based) with search ellipses and matches")
       ->check(CLI::NonNegativeNumber);
+  sub->add_option("--groundtruth", opts->groundtruth,
+                  "Reference trajectory (TUM, EuRoC state CSV, KITTI) for the accuracy report after the run; the "
+                  "estimator never reads it")
+      ->check(CLI::ExistingFile);
   sub->add_option("--start-at", opts->start_at_s,
                   "Start this many seconds after the first measurement of the input (data before is skipped)")
       ->check(CLI::NonNegativeNumber);

@@ -286,3 +286,39 @@ TEST(Association, WithoutTimestampsIsByIndexAndNeedsEqualLengths) {
   for (auto& p : far.poses) p.t += from_seconds(100.0);
   EXPECT_THROW(associate(far, gt), DataError);
 }
+
+// Ground truth sampled at 200 Hz, estimates at 20 Hz halfway between two samples: nearest-neighbour association
+// pairs poses 2.5 ms apart (a position error of v·2.5 ms), interpolation evaluates the ground truth at the estimate's
+// own time. On a trajectory that is linear in position and uniform in rotation between samples, the interpolated
+// reference is exact.
+TEST(Association, InterpolationEvaluatesTheReferenceAtTheEstimateTimes) {
+  Trajectory gt;
+  const Eigen::Vector3d v(1.0, -0.5, 0.2), w(0.1, 0.3, -0.2);
+  auto pose_at = [&](TimeNs t) {
+    StampedPose p;
+    p.t = t;
+    const double s = to_seconds(t);
+    p.p_WR = v * s;
+    p.q_WR = test::exp_q(w * s);
+    return p;
+  };
+  for (int k = 0; k <= 400; ++k) gt.poses.push_back(pose_at(5'000'000LL * k));
+  Trajectory est;
+  for (int k = 0; k < 40; ++k) est.poses.push_back(pose_at(50'000'000LL * k + 2'500'000));
+  const auto [e_near, g_near] = associate(est, gt, {.max_diff_s = 0.01});
+  ASSERT_EQ(e_near.poses.size(), 40u);
+  EXPECT_NEAR((e_near.poses[3].p_WR - g_near.poses[3].p_WR).norm(), v.norm() * 0.0025, 1e-12);
+  const auto [e, g] = associate(est, gt, {.interpolate = true});
+  ASSERT_EQ(e.poses.size(), 40u);
+  for (std::size_t k = 0; k < e.poses.size(); ++k) {
+    EXPECT_EQ(g.poses[k].t, e.poses[k].t);
+    EXPECT_LT((e.poses[k].p_WR - g.poses[k].p_WR).norm(), 1e-12);
+    EXPECT_LT(e.poses[k].q_WR.angularDistance(g.poses[k].q_WR), 1e-9);
+  }
+  // Estimates outside the reference's span, or in a gap larger than max_gap_s, are dropped.
+  est.poses.push_back(pose_at(from_seconds(5.0)));
+  Trajectory gapped = gt;
+  gapped.poses.erase(gapped.poses.begin() + 100, gapped.poses.begin() + 140);  // 0.5..0.7 s missing
+  const auto [e_gap, g_gap] = associate(est, gapped, {.interpolate = true, .max_gap_s = 0.1});
+  EXPECT_EQ(e_gap.poses.size(), 40u - 4u);  // t = 0.5025 .. 0.6525 s fall into the 0.2 s gap; 5 s is outside
+}

@@ -7,6 +7,7 @@
 #include <unistd.h>
 #include <nlohmann/json.hpp>
 
+#include "eval/eval_test_utils.hpp"
 #include "eval/fake_run.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/eval/run_eval.hpp"
@@ -109,4 +110,21 @@ TEST(Timing, PercentilesOfKnownList) {
   EXPECT_DOUBLE_EQ(s.median_ms, 50.5);
   EXPECT_DOUBLE_EQ(s.p95_ms, 95.0);
   EXPECT_DOUBLE_EQ(s.max_ms, 100.0);
+}
+
+// rtslam run's accuracy report: an estimate 5 % too large. With metric scale (inertial) the SE(3) ATE shows the
+// error and the scale error says 5 %; a monocular run's Sim(3) ATE absorbs the scale.
+TEST(RunAccuracy, MetricRunsReportSe3AteAndTheScaleErrorMonocularRunsSim3) {
+  Trajectory gt = test::wavy_trajectory(400);
+  Trajectory est = gt;
+  for (auto& p : est.poses) p.p_WR *= 1.05;
+  const eval::RunAccuracy metric = eval::evaluate_accuracy(est, gt, true);
+  EXPECT_EQ(metric.options.align, eval::Alignment::Se3);
+  EXPECT_NEAR(metric.scale_error, 1.0 - 1.0 / 1.05, 1e-9);
+  EXPECT_GT(metric.ate.ate.trans_m.rmse, 0.01);
+  EXPECT_NE(metric.line.find("scale error 4.76 %"), std::string::npos) << metric.line;
+  const eval::RunAccuracy mono = eval::evaluate_accuracy(est, gt, false);
+  EXPECT_EQ(mono.options.align, eval::Alignment::Sim3);
+  EXPECT_LT(mono.ate.ate.trans_m.rmse, 1e-9);
+  EXPECT_FALSE(mono.rpe_10m.has_value());
 }

@@ -36,6 +36,44 @@ std::pair<Trajectory, Trajectory> associate(const Trajectory& est, const Traject
   }
   const TimeNs offset = from_seconds(options.offset_s);
   const TimeNs max_diff = from_seconds(options.max_diff_s);
+  if (options.interpolate) {
+    if (!(options.max_gap_s > 0.0))
+      throw ConfigError(fmt::format("association: interpolation gap must be > 0 s, got {}", options.max_gap_s));
+    const TimeNs max_gap = from_seconds(options.max_gap_s);
+    const auto& G = gt.poses;
+    for (std::size_t j = 1; j < G.size(); ++j)
+      if (G[j].t <= G[j - 1].t)
+        throw DataError(fmt::format("association: {} is not sorted by time at pose {} (needed to interpolate)",
+                                    name_of(gt, "ground truth"), j));
+    for (const StampedPose& e : est.poses) {
+      const TimeNs t = e.t + offset;
+      const auto it = std::lower_bound(G.begin(), G.end(), t, [](const StampedPose& p, TimeNs v) { return p.t < v; });
+      if (it == G.end()) continue;
+      StampedPose g;
+      if (it->t == t) {
+        g = *it;
+      } else {
+        if (it == G.begin()) continue;
+        const StampedPose& a = *(it - 1);
+        const StampedPose& b = *it;
+        if (b.t - a.t > max_gap) continue;
+        const double s = static_cast<double>(t - a.t) / static_cast<double>(b.t - a.t);
+        g = a;
+        g.p_WR = a.p_WR + s * (b.p_WR - a.p_WR);
+        g.q_WR = a.q_WR.normalized().slerp(s, b.q_WR.normalized());
+        if (a.v_WR && b.v_WR) g.v_WR = *a.v_WR + s * (*b.v_WR - *a.v_WR);
+        g.cov.reset();
+      }
+      g.t = e.t;
+      est_out.poses.push_back(e);
+      gt_out.poses.push_back(g);
+    }
+    if (est_out.poses.empty())
+      throw DataError(fmt::format("association: no estimate of {} lies inside the time span of {} (interpolation, "
+                                  "offset {} s)", name_of(est, "estimate"), name_of(gt, "ground truth"),
+                                  options.offset_s));
+    return {est_out, gt_out};
+  }
   // evo: traj_1 = reference, traj_2 = estimate (offset applies to it); the shorter one drives the matching.
   const bool est_longer = est.poses.size() > gt.poses.size();
   const auto& shorter = est_longer ? gt.poses : est.poses;

@@ -9,6 +9,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/io/text.hpp"
+#include "rtslam/eval/associate.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 
 namespace rtslam::eval {
@@ -163,6 +164,58 @@ std::string write_run_eval(const RunEvaluation& r) {
   out << to_json(r, true).dump(1) << '\n';
   io::close_checked(out, path);
   return path;
+}
+
+RunAccuracy evaluate_accuracy(const Trajectory& est, const Trajectory& gt, bool metric_scale) {
+  RunAccuracy r;
+  r.metric_scale = metric_scale;
+  r.options.align = metric_scale ? Alignment::Se3 : Alignment::Sim3;
+  r.options.association.interpolate = gt.has_timestamps && est.has_timestamps;
+  r.options.with_rpe = false;
+  r.ate = evaluate(est, gt, r.options);
+  r.scale_error = std::abs(r.ate.sim3_scale - 1.0);
+  r.json = to_json(r.ate, r.options);
+  r.json["scale_error"] = r.scale_error;
+  const double path = r.ate.path_length_m;
+  const double pct = path > 0.0 ? 100.0 * r.ate.ate.trans_m.rmse / path : 0.0;
+  r.json["ate_percent_of_path"] = pct;
+  if (metric_scale && path >= 20.0) {
+    EvalOptions ro = r.options;
+    ro.with_rpe = true;
+    ro.rpe.delta = 10.0;
+    ro.rpe.unit = DeltaUnit::Meters;
+    ro.rpe.all_pairs = true;
+    const EvalResult with_rpe = evaluate(est, gt, ro);
+    if (with_rpe.rpe) {
+      r.rpe_10m = with_rpe.rpe;
+      r.json["rpe_10m"] = {{"trans_m", to_json(with_rpe.rpe->trans_m)}, {"rot_deg", to_json(with_rpe.rpe->rot_deg)},
+                           {"pairs", with_rpe.rpe->pairs.size()}};
+    }
+  }
+  const auto [e, g] = associate(est, gt, r.options.association);
+  if (std::any_of(e.poses.begin(), e.poses.end(), [](const StampedPose& p) { return p.cov.has_value(); })) {
+    try {
+      r.nees = summarize_nees(compute_nees(e, g));
+      r.json["nees"] = to_json(*r.nees);
+    } catch (const Error&) {
+      // No positive-definite covariance: no NEES.
+    }
+  }
+  if (metric_scale) {
+    r.line = fmt::format("  ATE (SE(3) aligned): RMSE {:.4f} m over the {:.2f} m path (max {:.4f} m); scale error {:.2f} % "
+                         "(Sim(3) scale {:.4f})", r.ate.ate.trans_m.rmse, path, r.ate.ate.trans_m.max,
+                         100.0 * r.scale_error, r.ate.sim3_scale);
+    if (r.rpe_10m) r.line += fmt::format("; RPE per 10 m: {:.4f} m", r.rpe_10m->trans_m.rmse);
+  } else {
+    r.line = fmt::format("  ATE (Sim(3) aligned): RMSE {:.4f} m = {:.3f} % of the {:.2f} m path; scale {:.4f}",
+                         r.ate.ate.trans_m.rmse, pct, path, r.ate.sim3_scale);
+  }
+  if (r.nees) {
+    r.line += fmt::format("\n  pose NEES: mean {:.2f}, {:.1f} % inside the 99 % band [{:.2f}, {:.2f}]", r.nees->mean,
+                          100.0 * r.nees->fraction_in_band, r.nees->band_lo, r.nees->band_hi);
+  }
+  r.line += "\n";
+  return r;
 }
 
 }  // namespace rtslam::eval

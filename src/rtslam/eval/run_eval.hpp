@@ -66,4 +66,21 @@ nlohmann::json to_json(const RunEvaluation& r, bool with_series);
 /// Writes RUN_DIR/eval.json (with series) and returns its path.
 std::string write_run_eval(const RunEvaluation& r);
 
+/// The accuracy a run reports when a reference trajectory is at hand (rtslam run's summary), with the ground truth
+/// interpolated at the estimate's timestamps. A run with metric scale (inertial, stereo) reports the SE(3)-aligned
+/// ATE, the scale error |s − 1| of the Sim(3) alignment (which an SE(3) ATE alone would not show, and a Sim(3) ATE
+/// would hide) and the translational RPE over 10 m of path; a monocular run, whose scale is not observable, the
+/// Sim(3)-aligned ATE as a percentage of the path. With covariances, the pose NEES (first-pose aligned).
+struct RunAccuracy {
+  bool metric_scale = false;
+  EvalOptions options;
+  EvalResult ate;                    // SE(3) (metric scale) or Sim(3) alignment
+  double scale_error = 0.0;          // |s − 1| of the Sim(3) alignment
+  std::optional<RpeResult> rpe_10m;  // metric scale: translation error per 10 m of path, when the path is long enough
+  std::optional<NeesSummary> nees;
+  std::string line;                  // one printable line (with a trailing newline)
+  nlohmann::json json;
+};
+RunAccuracy evaluate_accuracy(const Trajectory& est, const Trajectory& gt, bool metric_scale);
+
 }  // namespace rtslam::eval

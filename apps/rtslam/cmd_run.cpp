@@ -62,6 +62,11 @@ io::FrameStats to_io(const slam::FrameStats& s) {
   f.t_init_ms = s.time_init_ms;
   f.t_map_ms = s.time_map_ms;
   f.t_total_ms = s.time_total_ms;
+  f.refused = s.refused;
+  f.nis = s.nis;
+  f.nis_count = s.nis_count;
+  f.health = s.health;
+  f.reset = s.reset;
   return f;
 }
 
@@ -238,6 +243,24 @@ void run_dataset(const RunOptions& ro) {
                                        {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
     }
   }
+  {
+    long refused = 0, without_search = 0, nis_n = 0;
+    double nis_sum = 0.0;
+    for (const auto& f : result.frames) {
+      refused += f.refused;
+      without_search += f.searched == 0 ? 1 : 0;
+      nis_sum += f.nis;
+      nis_n += f.nis_count;
+    }
+    summary["health"] = {{"final", slam::to_string(result.final_health)},
+                         {"frames_lost", result.frames_lost},
+                         {"frames_diverged", result.frames_diverged},
+                         {"resets", result.resets},
+                         {"image_gaps", result.frame_gaps},
+                         {"frames_without_search", without_search},
+                         {"corrections_refused", refused},
+                         {"mean_nis_per_dof", nis_n > 0 ? nis_sum / (2.0 * static_cast<double>(nis_n)) : 0.0}};
+  }
   summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
   summary["input"] = ds.source->stats().to_json();
   summary["seed"] = o.seed;
@@ -291,12 +314,21 @@ void run_dataset(const RunOptions& ro) {
       min_matched_after_1s == std::numeric_limits<int>::max() ? 0 : min_matched_after_1s, timing.median, timing.p90,
       timing.max, stages["predict"].get<double>(), stages["match"].get<double>(), stages["ransac"].get<double>(),
       stages["update"].get<double>(), stages["init"].get<double>(), stages["map"].get<double>(), accuracy_line,
-      result.inertial
+      (result.resets > 0 || result.frames_lost + result.frames_diverged > 0
+           ? fmt::format("  health: {} frame(s) lost, {} diverged, {} re-initialization(s); last frame {}\n",
+                         result.frames_lost, result.frames_diverged, result.resets, slam::to_string(result.final_health))
+           : std::string()) +
+      (result.inertial
           ? fmt::format("  IMU: {}; {} samples, {} gyro / {} accel saturated; {} images before the start\n",
                         result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
                         result.imu_accel_saturated, result.images_before_start)
-          : std::string(),
+          : std::string()),
       ro.out);
+  if (result.final_health != slam::Health::Ok) {
+    throw DataError(fmt::format("the run ended with tracking {} ({} re-initialization(s) did not recover it); outputs "
+                                "in {}/ describe a broken estimate", slam::to_string(result.final_health),
+                                result.resets, ro.out));
+  }
 }
 
 }  // namespace

@@ -194,6 +194,11 @@ TEST(FramesCsv, RoundTripsEveryField) {
     s.ransac_inliers = 11;
     s.t_predict_ms = 0.1 * static_cast<double>(i);
     s.t_total_ms = 3.0 + 1.0 / 3.0;
+    s.refused = static_cast<int>(i % 3);
+    s.nis = 17.25 + static_cast<double>(i);
+    s.nis_count = 9;
+    s.health = static_cast<int>(i % 3);
+    s.reset = i == 2;
   }
   {
     FramesCsvWriter w(dir / "frames.csv");
@@ -208,6 +213,11 @@ TEST(FramesCsv, RoundTripsEveryField) {
     EXPECT_EQ(back[i].ransac_inliers, rows[i].ransac_inliers);
     EXPECT_EQ(back[i].t_predict_ms, rows[i].t_predict_ms);
     EXPECT_EQ(back[i].t_total_ms, rows[i].t_total_ms);
+    EXPECT_EQ(back[i].refused, rows[i].refused);
+    EXPECT_EQ(back[i].nis, rows[i].nis);
+    EXPECT_EQ(back[i].nis_count, rows[i].nis_count);
+    EXPECT_EQ(back[i].health, rows[i].health);
+    EXPECT_EQ(back[i].reset, rows[i].reset);
   }
   EXPECT_EQ(test::read_text(dir / "frames.csv").rfind(FramesCsvWriter::header(), 0), 0u);
 }

@@ -77,7 +77,8 @@ std::vector<MapPoint> read_map_ply(const std::string& path) {
 
 const char* FramesCsvWriter::header() {
   return "#timestamp [ns],camera,landmarks,predicted_visible,searched,matched,updated,initialized,ransac_inliers,"
-         "t_predict [ms],t_match [ms],t_ransac [ms],t_update [ms],t_init [ms],t_map [ms],t_total [ms]";
+         "t_predict [ms],t_match [ms],t_ransac [ms],t_update [ms],t_init [ms],t_map [ms],t_total [ms],"
+         "refused,nis,nis_count,health,reset";
 }
 
 FramesCsvWriter::FramesCsvWriter(const std::string& path) : path_(path), out_(open_for_writing(path)) {
@@ -89,7 +90,8 @@ void FramesCsvWriter::write(const FrameStats& s) {
        << s.matched << ',' << s.updated << ',' << s.initialized << ',' << s.ransac_inliers << ','
        << format_double(s.t_predict_ms) << ',' << format_double(s.t_match_ms) << ',' << format_double(s.t_ransac_ms)
        << ',' << format_double(s.t_update_ms) << ',' << format_double(s.t_init_ms) << ','
-       << format_double(s.t_map_ms) << ',' << format_double(s.t_total_ms) << '\n';
+       << format_double(s.t_map_ms) << ',' << format_double(s.t_total_ms) << ',' << s.refused << ','
+       << format_double(s.nis) << ',' << s.nis_count << ',' << s.health << ',' << (s.reset ? 1 : 0) << '\n';
   if (++rows_ % 100 == 0) out_.flush();
   if (!out_) throw IoError(fmt::format("{}: write failed", path_));
 }
@@ -116,10 +118,20 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     FrameStats s;
     std::int64_t n[9];
     double ms[7];
-    bool ok = f.size() == 16;
+    // 16 columns (files before the health columns) or 21.
+    bool ok = f.size() == 16 || f.size() == 21;
     for (size_t k = 0; ok && k < 9; ++k) ok = parse_int64(f[k], n[k]);
     for (size_t k = 0; ok && k < 7; ++k) ok = parse_double(f[9 + k], ms[k]);
-    if (!ok) throw IoError(fmt::format("{}:{}: expected 16 columns ({})", path, in.line_number(), FramesCsvWriter::header()));
+    std::int64_t refused = 0, nis_count = 0, health = 0, reset = 0;
+    double nis = 0.0;
+    if (ok && f.size() == 21) {
+      ok = parse_int64(f[16], refused) && parse_double(f[17], nis) && parse_int64(f[18], nis_count) &&
+           parse_int64(f[19], health) && parse_int64(f[20], reset);
+    }
+    if (!ok) {
+      throw IoError(fmt::format("{}:{}: expected 21 numeric columns ({}) or the first 16 of them", path,
+                                in.line_number(), FramesCsvWriter::header()));
+    }
     s.t = n[0];
     int* counts[] = {&s.camera, &s.landmarks, &s.predicted_visible, &s.searched, &s.matched,
                      &s.updated, &s.initialized, &s.ransac_inliers};
@@ -127,6 +139,11 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     double* times[] = {&s.t_predict_ms, &s.t_match_ms, &s.t_ransac_ms, &s.t_update_ms,
                        &s.t_init_ms,    &s.t_map_ms,   &s.t_total_ms};
     for (size_t k = 0; k < 7; ++k) *times[k] = ms[k];
+    s.refused = static_cast<int>(refused);
+    s.nis = nis;
+    s.nis_count = static_cast<int>(nis_count);
+    s.health = static_cast<int>(health);
+    s.reset = reset != 0;
     rows.push_back(s);
   }
   return rows;

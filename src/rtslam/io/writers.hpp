@@ -54,6 +54,11 @@ struct FrameStats {
   double t_init_ms = 0.0;
   double t_map_ms = 0.0;
   double t_total_ms = 0.0;
+  int refused = 0;           // corrections the filter refused
+  double nis = 0.0;          // summed NIS of the matched observations (first prediction), and their number
+  int nis_count = 0;
+  int health = 0;            // 0 ok, 1 tracking lost, 2 diverged (slam/health.hpp)
+  bool reset = false;        // the robot and the map were re-initialized after this frame
 };
 
 /// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), flushed regularly.

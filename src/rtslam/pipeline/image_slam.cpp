@@ -17,6 +17,7 @@
 #include "rtslam/pipeline/config_common.hpp"
 #include "rtslam/sim/simulation.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
+#include "rtslam/slam/health.hpp"
 #include "rtslam/slam/system.hpp"
 
 namespace rtslam::pipeline {
@@ -52,6 +53,7 @@ void ImageSlamOptions::validate() const {
   motion.validate();
   search.validate();
   map.validate();
+  health.validate();
 }
 
 void apply_image_slam_config(const YAML::Node& root, const std::string& where, ImageSlamOptions& o) {
@@ -79,6 +81,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     o.search = strategies::ActiveSearchOptions::from_yaml(a);
   }
   read_map_policy(top.child("map_manager"), o.map);
+  slam::read_health(top.child("health"), o.health);
   {
     YamlMap s = top.child("simulation");
     s.get("preset", o.sim_preset);
@@ -154,6 +157,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   s["zncc"]["climb_radius"] = z.climb_radius;
   s["zncc"]["partial_step_rows"] = z.partial_step_rows;
   root["map_manager"] = map_policy_to_yaml(o.map);
+  root["health"] = slam::health_to_yaml(o.health);
   root["simulation"]["preset"] = o.sim_preset;
   root["simulation"]["duration"] = o.sim_duration_s;
   return root;
@@ -286,21 +290,29 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
   int done = 0;       // images handed to the filter
   int consumed = 0;   // images taken from the stream (processed or not), for progress
   bool stop = false;
-  std::vector<ImuWindowSample> imu_window;  // before the inertial start
+  // The last 2·init_window + 1 s of IMU samples: the start's window, and the health monitor's re-initializations.
+  RingBuffer<ImuWindowSample> recent_imu(static_cast<std::size_t>(
+      std::max(64.0, (2.0 * o.imu.init_window_s + 1.0) * (rig.imu ? std::max(rig.imu->rate_hz, 1.0) : 200.0) * 1.5)));
+  const auto window_of = [&]() {
+    std::vector<ImuWindowSample> w;
+    w.reserve(recent_imu.size());
+    for (std::size_t k = 0; k < recent_imu.size(); ++k) w.push_back(recent_imu[k]);
+    return w;
+  };
+  slam::HealthMonitor monitor(o.health);
+  Eigen::VectorXd last_good_x;  // the robot's state at the last healthy frame with enough corrections
   RingBuffer<io::ImageFrame> waiting(8);     // images not yet covered by the IMU
   std::optional<TimeNs> last_imu_t;
 
   // Starts the filter at time t (the first image); false while the inertial window is incomplete.
   const auto start = [&](TimeNs t) -> bool {
     if (inertial) {
-      if (imu_window.empty() || imu_window.front().t > t - from_seconds(o.imu.init_window_s)) return false;
-      const InertialStart s0 = initialize_inertial(imu_window, t, o.imu);
+      if (recent_imu.empty() || recent_imu.front().t > t - from_seconds(o.imu.init_window_s)) return false;
+      const InertialStart s0 = initialize_inertial(window_of(), t, o.imu);
       result.inertial_start = s0.describe();
       logger("slam")->info("inertial robot: {}", result.inertial_start);
       robot = &map.add_robot(std::move(robot_ptr), s0.x, s0.P, t);
-      for (const auto& w : imu_window) imu_robot->add_imu(w.t, w.m);
-      imu_window.clear();
-      imu_window.shrink_to_fit();
+      for (std::size_t k = 0; k < recent_imu.size(); ++k) imu_robot->add_imu(recent_imu[k].t, recent_imu[k].m);
     } else {
       // The gauge: the first pose is the world frame (identity), with zero covariance.
       Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
@@ -316,7 +328,49 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
       if (known) result.known_landmarks = add_known_landmarks(map, sensor, *known);
     }
     raw.sensor_id = sensor.id();
+    monitor.restart(t);
+    last_good_x = map.state().mean(robot->block());
     return true;
+  };
+
+  // The health monitor's recovery: every landmark is dropped and the robot starts again at time t from its last
+  // healthy state — position and heading kept (the trajectory goes on in the same world frame), velocity unknown
+  // (the in-motion prior), and for the inertial robot the attitude's tilt and gravity re-estimated from the last
+  // IMU window (a corrupted IMU burst leaves the attitude wrong), biases kept when plausible.
+  const auto reinitialize = [&](TimeNs t) {
+    while (!map.landmarks().empty()) map.remove_landmark(*map.landmarks().back());
+    Eigen::VectorXd x = last_good_x;
+    Eigen::MatrixXd P;
+    if (inertial) {
+      using I = models::InertialIndex;
+      InertialOptions motion = o.imu;
+      motion.init = "motion";
+      const InertialStart s0 = initialize_inertial(window_of(), t, motion);
+      // Heading: of the body axis most orthogonal to gravity, in both frames (see gravity_aligned_attitude).
+      const Eigen::Quaterniond q_new = math::quat_from_wxyz(s0.x.segment<4>(I::kQ));
+      const Eigen::Quaterniond q_old = math::quat_from_wxyz(x.segment<4>(I::kQ));
+      const Eigen::Vector3d up_R = q_new.conjugate() * Eigen::Vector3d::UnitZ();
+      int k = 0;
+      up_R.cwiseAbs().minCoeff(&k);
+      const Eigen::Vector3d h_new = q_new * Eigen::Vector3d::Unit(k), h_old = q_old * Eigen::Vector3d::Unit(k);
+      const double dyaw = std::atan2(h_old.y(), h_old.x()) - std::atan2(h_new.y(), h_new.x());
+      const Eigen::Quaterniond Rz(Eigen::AngleAxisd(dyaw, Eigen::Vector3d::UnitZ()));
+      x.segment<4>(I::kQ) = math::quat_to_wxyz((Rz * q_new).normalized());
+      x.segment<3>(I::kV).setZero();
+      x.segment<3>(I::kG) = Rz * s0.x.segment<3>(I::kG);
+      if (!(x.segment<3>(I::kAb).norm() <= o.health.max_accel_bias) ||
+          !(x.segment<3>(I::kWb).norm() <= o.health.max_gyro_bias)) {
+        x.segment<3>(I::kAb) = s0.x.segment<3>(I::kAb);
+        x.segment<3>(I::kWb) = s0.x.segment<3>(I::kWb);
+      }
+      P = motion_prior_covariance(o.imu, (Rz * q_new).toRotationMatrix());
+    } else {
+      x.segment<6>(7).setZero();
+      P = Eigen::MatrixXd::Zero(12, 12);
+      P.bottomRightCorner<6, 6>() = o.initial_velocity_std * o.initial_velocity_std * Eigen::MatrixXd::Identity(6, 6);
+    }
+    robot->reset(x, P);
+    monitor.restart(t);
   };
 
   const auto process_image = [&](const io::ImageFrame& frame) {
@@ -334,7 +388,7 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
     raw.t = t;
     raw.image = vision::ImageView{frame.image.data, frame.image.cols, frame.image.rows,
                                   static_cast<int>(frame.image.step[0])};
-    result.frames.push_back(system.process(raw));
+    slam::FrameStats& fs = result.frames.emplace_back(system.process(raw));
     if (done == o.overlay_frame) write_overlay(o.overlay_path, frame.image, dm.last_frame(), o.search.n_sigma);
     StampedPose est;
     est.t = t;
@@ -349,6 +403,22 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
     }
     est.cov = map.state().cov(robot->block()).topLeftCorner<6, 6>();
     result.estimate.poses.push_back(est);
+    const slam::HealthMonitor::Verdict verdict = monitor.check(map, *robot, fs);
+    fs.health = static_cast<int>(verdict.health);
+    if (!verdict.note.empty()) logger("slam")->warn("t = {:.3f} s: {}", to_seconds(t), verdict.note);
+    result.final_health = verdict.health;
+    if (verdict.health == slam::Health::Ok) {
+      if (fs.updated >= o.health.min_updated) last_good_x = x;
+    } else {
+      ++(verdict.health == slam::Health::Lost ? result.frames_lost : result.frames_diverged);
+      logger("slam")->warn("t = {:.3f} s: tracking {}: {}{}", to_seconds(t), slam::to_string(verdict.health),
+                           verdict.reason, o.health.reset ? "; re-initializing" : "");
+      if (o.health.reset) {
+        reinitialize(t);
+        fs.reset = true;
+        ++result.resets;
+      }
+    }
     if (observer) observer(ImageSlamFrame{done, t, &map, &dm.last_frame()});
     ++done;
     if (on_frame) on_frame(consumed, n_total);
@@ -365,21 +435,12 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
       if (gyro_full_scale > 0.0 && imu->gyro.cwiseAbs().maxCoeff() >= gyro_full_scale) ++result.imu_gyro_saturated;
       if (accel_full_scale > 0.0 && imu->accel.cwiseAbs().maxCoeff() >= accel_full_scale) ++result.imu_accel_saturated;
       const models::ImuMeasurement mm_imu{imu->accel, imu->gyro};
-      if (robot == nullptr) {
-        if (!imu_window.empty() && imu->t <= imu_window.back().t) {
-          throw DataError(fmt::format("IMU sample at t = {} ns is not after the previous one", imu->t));
-        }
-        imu_window.push_back({imu->t, mm_imu});
-        // Keep only what the initialization can use (the window before the next image).
-        const TimeNs keep_from = imu->t - from_seconds(2.0 * o.imu.init_window_s + 1.0);
-        if (imu_window.front().t < keep_from) {
-          const auto it = std::lower_bound(imu_window.begin(), imu_window.end(), keep_from,
-                                           [](const ImuWindowSample& s, TimeNs tt) { return s.t < tt; });
-          imu_window.erase(imu_window.begin(), it);
-        }
-      } else {
-        imu_robot->add_imu(imu->t, mm_imu);
+      if (!recent_imu.empty() && imu->t <= recent_imu.back().t) {
+        throw DataError(fmt::format("IMU sample at t = {} ns is not after the previous one", imu->t));
       }
+      if (recent_imu.size() + 1 >= recent_imu.capacity()) recent_imu.pop_front();
+      recent_imu.push_back({imu->t, mm_imu});
+      if (robot != nullptr) imu_robot->add_imu(imu->t, mm_imu);
       while (!stop && !waiting.empty() && waiting.front().t + t_d <= imu->t) {
         process_image(waiting.front());
         waiting.pop_front();
@@ -423,6 +484,7 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
     result.T_RS_std = map.state().cov(sensor.block()).diagonal().cwiseSqrt();
   }
   if (robot == nullptr) throw DataError(fmt::format("dataset '{}' has no image of camera {}", name, o.camera));
+  result.frame_gaps = monitor.frame_gaps();
   const Eigen::VectorXd& mean = map.state().mean_vector();
   const Eigen::Vector3d p_WS = sensor.pose_in_world(mean).p;
   for (const auto& l : map.landmarks()) {

@@ -19,6 +19,7 @@
 //   search:      see strategies::ActiveSearchOptions::from_yaml
 //   map_manager: {policy: global|visual_odometry, map_size, reparam_threshold, min_searches_to_judge,
 //                 min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
+//   health:      see slam/health.hpp               (divergence and lost-tracking detection, recovery)
 //   simulation:  {preset, duration}   (only for runs on the simulator: `rtslam run` without --dataset)
 #include <cstdint>
 #include <functional>
@@ -32,6 +33,7 @@
 #include "rtslam/models/robots/constant_velocity.hpp"
 #include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
+#include "rtslam/slam/health.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/map_policies.hpp"
@@ -61,6 +63,7 @@ struct ImageSlamOptions {
   InertialOptions imu;
   strategies::ActiveSearchOptions search;
   strategies::MapPolicyOptions map;
+  slam::HealthOptions health;
   void validate() const;
 };
 
@@ -83,6 +86,12 @@ struct ImageSlamResult {
   std::vector<Eigen::Vector3d> landmark_positions;
   std::vector<Eigen::Matrix3d> landmark_covariances;  // of the position (AHP: through J_p_L)
   std::vector<double> landmark_depths;          // distance from the final camera position
+  // Health (slam/health.hpp): frames judged lost or diverged, re-initializations, and the verdict of the last frame.
+  int frames_lost = 0;
+  int frames_diverged = 0;
+  int resets = 0;
+  int frame_gaps = 0;  // gaps between processed images longer than health/max_frame_gap
+  slam::Health final_health = slam::Health::Ok;
   // Inertial runs.
   bool inertial = false;
   std::string inertial_start;                   // InertialStart::describe() of the initialization

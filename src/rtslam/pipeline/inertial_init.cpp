@@ -118,6 +118,28 @@ std::string InertialStart::describe() const {
                      x[InertialIndex::kWb], x[InertialIndex::kWb + 1], x[InertialIndex::kWb + 2]);
 }
 
+namespace {
+// The prior of [v a_b ω_b g] with g = −R f̄, f̄ = mean(R_k (f_k − a_b)) + a_b: g's error is the accelerometer bias error
+// rotated into W (correlated with a_b: ∂g/∂a_b = R) plus g_std (the spread of the mean, or the unknown mean
+// acceleration in motion).
+Eigen::Matrix<double, 18, 18> prior_covariance(double v_std, double ab_std, double wb_std, double g_std,
+                                               const Eigen::Matrix3d& R) {
+  using I = InertialIndex;
+  Eigen::Matrix<double, 18, 18> P = Eigen::Matrix<double, 18, 18>::Zero();
+  P.block<3, 3>(I::kDv, I::kDv) = v_std * v_std * Eigen::Matrix3d::Identity();
+  P.block<3, 3>(I::kDab, I::kDab) = ab_std * ab_std * Eigen::Matrix3d::Identity();
+  P.block<3, 3>(I::kDwb, I::kDwb) = wb_std * wb_std * Eigen::Matrix3d::Identity();
+  P.block<3, 3>(I::kDg, I::kDg) = (g_std * g_std + ab_std * ab_std) * Eigen::Matrix3d::Identity();
+  P.block<3, 3>(I::kDg, I::kDab) = ab_std * ab_std * R;
+  P.block<3, 3>(I::kDab, I::kDg) = P.block<3, 3>(I::kDg, I::kDab).transpose();
+  return P;
+}
+}  // namespace
+
+Eigen::Matrix<double, 18, 18> motion_prior_covariance(const InertialOptions& o, const Eigen::Matrix3d& R_WR) {
+  return prior_covariance(o.velocity_std_motion, o.accel_bias_std, o.gyro_bias_std, o.gravity_std_motion, R_WR);
+}
+
 Eigen::Quaterniond gravity_aligned_attitude(const Eigen::Vector3d& f_R) {
   const Eigen::Vector3d z = f_R.normalized();  // W's z axis (up) in R
   int k = 0;                                   // the body axis most orthogonal to z
@@ -185,18 +207,9 @@ InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, Ti
   const Eigen::Matrix3d R = q_WR.toRotationMatrix();
   x.segment<3>(I::kG) = -(R * f_R);
   const double v_std = s.standstill ? o.velocity_std_standstill : o.velocity_std_motion;
-  auto& P = s.P;
-  P.block<3, 3>(I::kDv, I::kDv) = v_std * v_std * Eigen::Matrix3d::Identity();
-  P.block<3, 3>(I::kDab, I::kDab) = o.accel_bias_std * o.accel_bias_std * Eigen::Matrix3d::Identity();
   const double wb_std = s.standstill ? std::max(1e-3, s.gyro_std / std::sqrt(static_cast<double>(n))) : o.gyro_bias_std;
-  P.block<3, 3>(I::kDwb, I::kDwb) = wb_std * wb_std * Eigen::Matrix3d::Identity();
-  // g = −R f̄ with f̄ = mean(R_k (f_k − a_b)) + a_b: its error is the accelerometer bias error rotated into W
-  // (correlated with a_b) plus the spread of the mean (standstill) or the unknown mean acceleration (motion).
   const double g_std = s.standstill ? o.gravity_std_standstill : o.gravity_std_motion;
-  P.block<3, 3>(I::kDg, I::kDg) =
-      g_std * g_std * Eigen::Matrix3d::Identity() + o.accel_bias_std * o.accel_bias_std * Eigen::Matrix3d::Identity();
-  P.block<3, 3>(I::kDg, I::kDab) = o.accel_bias_std * o.accel_bias_std * R;  // ∂g/∂a_b = R (at t)
-  P.block<3, 3>(I::kDab, I::kDg) = P.block<3, 3>(I::kDg, I::kDab).transpose();
+  s.P = prior_covariance(v_std, o.accel_bias_std, wb_std, g_std, R);
   return s;
 }
 

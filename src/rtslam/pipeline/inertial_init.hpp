@@ -84,6 +84,11 @@ struct InertialStart {
 /// The initial state at time t from the samples of [t − window, t] (at least 10 of them; DataError otherwise).
 InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o);
 
+/// The in-motion prior of [v a_b ω_b g] (tangent 18 × 18, zero on the pose rows): velocity_std_motion,
+/// accel_bias_std, gyro_bias_std, gravity_std_motion with g's correlation to a_b through R_WR. For starts in motion
+/// and the health monitor's re-initializations.
+Eigen::Matrix<double, 18, 18> motion_prior_covariance(const InertialOptions& o, const Eigen::Matrix3d& R_WR);
+
 /// The gravity-aligned attitude q_WR of a body whose mean specific force (in R) is f_R: R_WR f_R ∝ +z, W's x axis
 /// along the horizontal projection of the body axis most orthogonal to f_R.
 Eigen::Quaterniond gravity_aligned_attitude(const Eigen::Vector3d& f_R);

@@ -29,6 +29,13 @@ struct FrameStats {
   int reparametrized = 0;
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map
+  int refused = 0;  // corrections the filter refused (S not positive definite, a variance would turn negative)
+  // Normalized innovation squared (z − h₀)ᵀ S₀⁻¹ (z − h₀) of the matched observations at their first prediction of
+  // the frame, summed, and their number (2 dof each): the health monitor's consistency signal.
+  double nis = 0.0;
+  int nis_count = 0;
+  int health = 0;   // slam::Health of the frame (0 ok, 1 lost, 2 diverged) as judged after it
+  bool reset = false;  // the robot and the map were re-initialized after this frame
   // Wall times of the frame's stages; predict + match + ransac + update + init + map ≈ total.
   double time_predict_ms = 0.0;  // robots to the datum's time, observation predictions
   double time_match_ms = 0.0;    // appearance matching (ZNCC searches), in every stage

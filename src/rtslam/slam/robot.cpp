@@ -28,25 +28,40 @@ Sensor& Robot::add_sensor(std::unique_ptr<Sensor> sensor) {
   return s;
 }
 
-void Robot::attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0) {
-  RTSLAM_CHECK(map_ == nullptr, "robot already attached to a map");
+void Robot::allocate_block(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov) {
   std::optional<filter::BlockId> block;
-  if (map.state().nullspace_dim() > 0) {
-    RTSLAM_CHECK(map.state().nullspace_dim() == kNullspaceDim,
+  if (map_->state().nullspace_dim() > 0) {
+    RTSLAM_CHECK(map_->state().nullspace_dim() == kNullspaceDim,
                  fmt::format("robot '{}': the map tracks {} unobservable directions, robots give {}", name_,
-                             map.state().nullspace_dim(), kNullspaceDim));
+                             map_->state().nullspace_dim(), kNullspaceDim));
     Eigen::MatrixXd N(layout().tangent_size(), kNullspaceDim);
     nullspace(mean, N);
-    block = map.state().add_block(layout(), mean, cov, N);
+    block = map_->state().add_block(layout(), mean, cov, N);
   } else {
-    block = map.state().add_block(layout(), mean, cov);
+    block = map_->state().add_block(layout(), mean, cov);
   }
   if (!block) throw ConfigError(fmt::format("robot '{}': the map has no room for its state", name_));
-  map_ = &map;
-  id_ = id;
   block_ = *block;
+}
+
+void Robot::attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0) {
+  RTSLAM_CHECK(map_ == nullptr, "robot already attached to a map");
+  map_ = &map;
+  try {
+    allocate_block(mean, cov);
+  } catch (...) {
+    map_ = nullptr;
+    throw;
+  }
+  id_ = id;
   time_ = t0;
   for (auto& s : sensors_) s->attach(*this, map.take_sensor_id());
+}
+
+void Robot::reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov) {
+  RTSLAM_CHECK(map_ != nullptr, "reset: robot not in a map");
+  map_->state().remove_block(block_);
+  allocate_block(mean, cov);
 }
 
 ConstantVelocityRobot::ConstantVelocityRobot(models::ConstantVelocityParams params, std::string name)

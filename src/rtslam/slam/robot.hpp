@@ -49,6 +49,10 @@ class Robot {
   /// Called by Map::add_robot: allocates the block with the given prior (gauge: the first robot's pose defines
   /// the world frame, so its pose rows may have zero covariance).
   void attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0);
+  /// Re-initializes the robot in its map at its current time: its block is freed and allocated again with this
+  /// prior (no cross-covariance with what remains of the map). The health monitor's recovery: the caller removes
+  /// the landmarks first. Sensors and buffered data (IMU samples) are kept.
+  void reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov);
 
  protected:
   explicit Robot(std::string name) : name_(std::move(name)) {}
@@ -57,6 +61,7 @@ class Robot {
   TimeNs time_ = 0;
 
  private:
+  void allocate_block(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov);
   int id_ = -1;
   std::string name_;
   std::vector<std::unique_ptr<Sensor>> sensors_;

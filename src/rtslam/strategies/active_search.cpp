@@ -278,6 +278,9 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     c.matched = true;
     ++c.obs->counters.matched;
     ++stats.matched;
+    const Eigen::Vector2d y0 = c.z - c.h0;
+    stats.nis += y0.dot(c.S0.ldlt().solve(y0));
+    ++stats.nis_count;
   };
   auto count_fail = [&](Candidate& c) {
     c.done = true;
@@ -354,6 +357,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
         batch_.push_back(&c);
       }
       const bool ok = correct_batch(map, batch_);
+      if (!ok) ++stats.refused;
       for (Candidate* c : batch_) count_update(*c, ok);
       stats.ransac_inliers = static_cast<int>(n);
     }
@@ -399,6 +403,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     }
     if (batch_.empty()) continue;
     const bool ok = correct_batch(map, batch_);
+    if (!ok) ++stats.refused;
     for (Candidate* c : batch_) count_update(*c, ok);
   }
   // The frame's corrections left their covariance downdate pending (filter/state.hpp); initialization and the next

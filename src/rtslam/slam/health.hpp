@@ -1,0 +1,81 @@
+#pragma once
+// The health monitor (issue "Inertial SLAM that holds on real IMU data"): after every processed frame it judges
+// whether the filter still tracks, from what the run itself sees (no reference trajectory):
+//  - non-finite estimate: diverged at once;
+//  - implausible robot state: speed above max_speed, accelerometer or gyro bias beyond their bounds (inertial
+//    robots): diverged;
+//  - tracking lost: fewer than min_updated corrections per frame during lost_after_s (search regions too large to
+//    search, every match gated out or refused, no landmark in view);
+//  - innovations out of statistics: the mean normalized innovation squared per measurement dof of the matched
+//    observations (at their first prediction of the frame, FrameStats::nis) over the last nis_window frames above
+//    max_nis_per_dof (a consistent filter gives 1; matches only come from inside the n_sigma ellipse, so the mean
+//    cannot exceed n_sigma²/2: a mean near that bound means every match sits at the edge of its ellipse).
+// The verdicts of "lost" and NIS wait grace_s after a (re)start, while the map is being built. A gap of more than
+// max_frame_gap_s between two frames (an image blackout) is noted, and the lost timer starts again at the frame
+// after it: the filter, carried by its motion model or IMU through the gap, gets lost_after_s to find its
+// landmarks again before it is declared lost. The caller decides
+// what to do with a verdict (the pipeline re-initializes the robot from its last healthy state when reset is on).
+#include <string>
+
+#include "rtslam/core/ring_buffer.hpp"
+#include "rtslam/core/time.hpp"
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/slam/managers.hpp"
+
+namespace rtslam::slam {
+
+class Map;
+class Robot;
+
+struct HealthOptions {
+  bool enabled = true;
+  bool reset = true;              // re-initialize the robot and the map on a verdict (false: report only)
+  double lost_after_s = 0.5;      // s with fewer than min_updated corrections per frame
+  int min_updated = 3;
+  int nis_window = 20;            // frames
+  int nis_min_matches = 30;       // matches needed in the window to judge the NIS
+  double max_nis_per_dof = 3.5;   // mean NIS per measurement dof over the window
+  double max_speed = 50.0;        // m/s
+  double max_accel_bias = 3.0;    // m/s² (norm)
+  double max_gyro_bias = 1.0;     // rad/s (norm)
+  double grace_s = 1.0;           // after a (re)start: no lost/NIS verdict
+  double max_frame_gap_s = 0.5;   // a longer gap between frames is noted (image blackout)
+  void validate() const;
+};
+/// health: {enabled, reset, lost_after, min_updated, nis_window, nis_min_matches, max_nis_per_dof, max_speed,
+/// max_accel_bias, max_gyro_bias, grace} (times in s).
+void read_health(YamlMap section, HealthOptions& o);
+YAML::Node health_to_yaml(const HealthOptions& o);
+
+enum class Health { Ok = 0, Lost = 1, Diverged = 2 };
+const char* to_string(Health h);
+
+class HealthMonitor {
+ public:
+  explicit HealthMonitor(HealthOptions options);
+  struct Verdict {
+    Health health = Health::Ok;
+    std::string reason;  // empty when Ok
+    std::string note;    // an event worth a log line that is not a verdict (an image gap)
+  };
+  /// Judges the state after a processed frame (stats of that frame).
+  Verdict check(const Map& map, const Robot& robot, const FrameStats& stats);
+  /// Forget the history: the robot (re)starts at t.
+  void restart(TimeNs t);
+  const HealthOptions& options() const { return opt_; }
+  int frame_gaps() const { return gaps_; }
+
+ private:
+  HealthOptions opt_;
+  TimeNs start_t_ = 0;
+  TimeNs last_tracked_t_ = 0;
+  TimeNs prev_t_ = 0;
+  int gaps_ = 0;
+  struct NisFrame {
+    double sum = 0.0;
+    int count = 0;
+  };
+  RingBuffer<NisFrame> nis_;
+};
+
+}  // namespace rtslam::slam

@@ -38,12 +38,12 @@ void ImageSlamOptions::validate() const {
  if (robot != "constant_velocity" && robot != "inertial") {
     throw ConfigError(fmt::format("slam/robot = '{}' must be constant_velocity or inertial", robot));
   }
-  if (consistency != "none" && consistency != "oc") {
-    throw ConfigError(fmt::format("slam/consistency = '{}' must be none or oc", consistency));
+  if (consistency != "none" && consistency != "oc" && consistency != "fej") {
+    throw ConfigError(fmt::format("slam/consistency = '{}' must be none, oc or fej", consistency));
   }
-  if (consistency == "oc" && !known_landmarks.empty()) {
-    throw ConfigError("slam/consistency = oc needs the first robot pose as the gauge: it cannot be combined with "
-                      "slam/known_landmarks (whose points define the world frame)");
+  if (consistency != "none" && !known_landmarks.empty()) {
+    throw ConfigError("slam/consistency = oc or fej needs the first robot pose as the gauge: it cannot be combined "
+                      "with slam/known_landmarks (whose points define the world frame)");
   }
   imu.validate();
   if (known_landmarks_convention != "scenelib" && known_landmarks_convention != "robot") {
@@ -128,6 +128,8 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   s["ransac_ntries"] = a.ransac_ntries;
   s["ransac_low_innov_px"] = a.ransac_low_innov_px;
   s["gain_recomputations"] = a.gain_recomputations;
+  s["iterations"] = a.iterations;
+  s["iteration_tolerance"] = a.iteration_tolerance;
   s["max_inits"] = a.max_inits;
   s["max_search_size_px2"] = a.max_search_size_px2;
   s["margin_px"] = a.margin_px;
@@ -277,6 +279,10 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
   auto dm_ptr = std::make_unique<strategies::ActiveSearchDataManager>(o.search, mm, intr.width, intr.height,
                                                                       o.seed * 7919 + 1);
   const strategies::ActiveSearchDataManager& dm = *dm_ptr;
+  if (o.consistency == "fej") {
+    dm_ptr->set_first_estimate_jacobians(true);
+    robot_ptr->set_first_estimate_jacobians(true);
+  }
   sensor.set_data_manager(std::move(dm_ptr));
 
   ImageSlamResult result;

@@ -45,7 +45,10 @@ struct ImageSlamOptions {
   std::string robot = "constant_velocity";  // constant_velocity | inertial
   // none: plain EKF; oc: observability-constrained EKF (filter/state.hpp): the filter tracks the unobservable
   // global translation and rotation, constrains the robot's transition and projects every measurement Jacobian so
-  // that the linearized system cannot gain information along them (consistent covariances, MATH.md "Consistency").
+  // that the linearized system cannot gain information along them (consistent covariances, MATH.md "Consistency");
+  // fej: first-estimate Jacobians (slam::Robot::set_first_estimate_jacobians, the data manager's): the robot's
+  // transition along its first estimates, observations linearized at the frame's prediction of the robot and at the
+  // first (converged) estimate of Euclidean landmarks.
   std::string consistency = "none";
   double initial_velocity_std = 0.5;  // m/s and rad/s: prior std of v and ω (RT-SLAM)
   int state_capacity = 600;           // covariance rows of the filter storage (>= map_manager.map_size)

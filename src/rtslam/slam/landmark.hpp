@@ -55,6 +55,9 @@ class Landmark {
   /// Free-form descriptor for the data manager (e.g. the initial patch and view); a known-association
   /// simulation stores the true point id here.
   std::any descriptor;
+  /// The block's mean when this parametrization was created (first-estimate Jacobians: the linearization point of
+  /// Euclidean landmarks, which are created by reparametrization once their depth has converged).
+  Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 16, 1> first_estimate;
   /// Frame counters for the map manager.
   long frame_created = 0;
 

@@ -49,6 +49,7 @@ Landmark* Map::add_landmark(const filter::BlockLayout& layout, const Eigen::Ref<
   if (!block) return nullptr;
   auto lmk = make(next_landmark_id_++, *block);
   lmk->ambient_offset_ = state_.block(*block).ambient_offset;
+  lmk->first_estimate = mean;
   create_observations(*lmk);
   landmarks_.push_back(std::move(lmk));
   return landmarks_.back().get();
@@ -64,6 +65,7 @@ Landmark* Map::reparametrize(Landmark& old, const filter::BlockLayout& layout,
   if (!block) return nullptr;
   auto lmk = make(old.id(), *block);
   lmk->ambient_offset_ = state_.block(*block).ambient_offset;
+  lmk->first_estimate = mean;
   lmk->descriptor = std::move(old.descriptor);
   lmk->frame_created = old.frame_created;
   lmk->observations_ = std::move(old.observations_);

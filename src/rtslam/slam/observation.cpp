@@ -7,7 +7,7 @@
 namespace rtslam::slam {
 
 bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean, Observation& obs, double margin,
-                         bool with_jacobians) {
+                         bool with_jacobians, const Eigen::VectorXd* lin_mean) {
   const Sensor& sensor = *obs.sensor;
   const Landmark& lmk = *obs.landmark;
   const Robot& robot = sensor.robot();
@@ -22,6 +22,20 @@ bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean
   Eigen::Matrix<double, 2, 3> J_z_h;
   obs.projectable = sensor.project(h_S, obs.h, with_jacobians ? &J_z_h : nullptr);
   obs.visible = obs.projectable && sensor.in_field(obs.h, margin);
+  if (with_jacobians && obs.projectable && lin_mean != nullptr) {
+    // First-estimate Jacobians: the chain at the linearization mean (h stays the prediction at `mean`).
+    const math::Pose T_WS_lin =
+        sensor.pose_in_world(*lin_mean, &J_TWS_TWR, estimated_extrinsics ? &J_TWS_TRS : nullptr);
+    const Eigen::Vector3d h_S_lin = lmk.to_sensor(*lin_mean, T_WS_lin, &J_h_TWS, &J_h_L);
+    Eigen::Vector2d z_lin;
+    Eigen::Matrix<double, 2, 3> J_z_h_lin;
+    if (sensor.project(h_S_lin, z_lin, &J_z_h_lin)) {
+      J_z_h = J_z_h_lin;
+    } else {  // not projectable at the first estimate: linearize at the current mean
+      sensor.pose_in_world(mean, &J_TWS_TWR, estimated_extrinsics ? &J_TWS_TRS : nullptr);
+      lmk.to_sensor(mean, T_WS, &J_h_TWS, &J_h_L);
+    }
+  }
   obs.block_count = 0;
   obs.blocks[static_cast<std::size_t>(obs.block_count++)] = robot.block();
   if (estimated_extrinsics) obs.blocks[static_cast<std::size_t>(obs.block_count++)] = sensor.block();

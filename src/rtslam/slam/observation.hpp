@@ -69,9 +69,11 @@ struct Observation {
 
 /// Predicts an observation from a mean vector (the map's, or a RANSAC hypothesis): h, and if `with_jacobians`,
 /// the compressed H over the involved blocks [robot, (sensor,) landmark]. Sets projectable/visible (with `margin` px). Returns
-/// `visible`. Allocation-free after the first call for a given observation.
+/// `visible`. Allocation-free after the first call for a given observation. With `lin_mean` (first-estimate
+/// Jacobians), H is evaluated at that mean instead (h still at `mean`); the projection must be valid there too,
+/// else H falls back to `mean`.
 bool predict_observation(const filter::State& state, const Eigen::VectorXd& mean, Observation& obs, double margin,
-                         bool with_jacobians);
+                         bool with_jacobians, const Eigen::VectorXd* lin_mean = nullptr);
 
 /// The measurement noise of a predicted observation: sigma² I, plus R_depth when `second_order` is set.
 Eigen::Matrix2d measurement_noise(const Observation& obs, double sigma, bool second_order);

@@ -62,6 +62,7 @@ void Robot::reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov) {
   RTSLAM_CHECK(map_ != nullptr, "reset: robot not in a map");
   map_->state().remove_block(block_);
   allocate_block(mean, cov);
+  fej_valid_ = false;
 }
 
 ConstantVelocityRobot::ConstantVelocityRobot(models::ConstantVelocityParams params, std::string name)
@@ -79,7 +80,14 @@ bool ConstantVelocityRobot::predict_to(TimeNs t) {
   const double dt = to_seconds(t - time_);
   filter::State& state = map_->state();
   const models::Vector13d x = state.mean(block_);
-  models::constant_velocity_predict(x, dt, params_, x_tmp_, &F_, &Q_);
+  if (fej_ && fej_valid_) {
+    models::constant_velocity_predict(x, dt, params_, x_tmp_);
+    models::constant_velocity_predict(fej_x_, dt, params_, fej_tmp_, &F_, &Q_);
+  } else {
+    models::constant_velocity_predict(x, dt, params_, x_tmp_, &F_, &Q_);
+  }
+  fej_x_ = x_tmp_;
+  fej_valid_ = true;
   state.mean(block_) = x_tmp_;
   if (state.nullspace_dim() > 0) {
     nullspace(x_tmp_, N_);
@@ -157,6 +165,7 @@ bool InertialRobot::predict_to(TimeNs t) {
   }
   filter::State& state = map_->state();
   x_ = state.mean(block_);
+  const bool fej = fej_ && fej_valid_;
   Phi_.setIdentity();
   Qacc_.setZero();
   while (time_ < t) {
@@ -170,7 +179,14 @@ bool InertialRobot::predict_to(TimeNs t) {
     const models::ImuMeasurement m0 = lerp(before, next, time_);
     const TimeNs t1 = std::min(next.t, t);
     const models::ImuMeasurement m1 = lerp(before, next, t1);
-    models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_, &F_, &Q_);
+    if (fej) {
+      // The transition along the first-estimate states (fej_x_), the mean from the corrected one.
+      models::inertial_predict(fej_x_, m0, m1, to_seconds(t1 - time_), params_, fej_next_, &F_, &Q_);
+      fej_x_ = fej_next_;
+      models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_);
+    } else {
+      models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_, &F_, &Q_);
+    }
     tmp_.noalias() = F_ * Phi_;
     Phi_ = tmp_;
     tmp_.noalias() = F_ * Qacc_;
@@ -184,6 +200,8 @@ bool InertialRobot::predict_to(TimeNs t) {
     }
   }
   state.mean(block_) = x_;
+  fej_x_ = x_;  // the first estimate at t: this prediction, before the corrections at t
+  fej_valid_ = true;
   if (state.nullspace_dim() > 0) {
     nullspace(x_, N_);
     state.predict_constrained(block_, Phi_, Qacc_, N_, models::InertialIndex::kDth, 3);  // attitude columns

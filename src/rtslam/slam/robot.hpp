@@ -54,7 +54,15 @@ class Robot {
   /// the landmarks first. Sensors and buffered data (IMU samples) are kept.
   void reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov);
 
+  /// First-estimate Jacobians (FEJ: Huang, Mourikis, Roumeliotis 2008): the transition of a prediction from t_k is
+  /// evaluated along the states predicted from the robot's FIRST estimate at t_k (its prediction to t_k, before
+  /// the corrections at t_k), not from the corrected mean; the mean itself still starts from the corrected one.
+  void set_first_estimate_jacobians(bool on) { fej_ = on; fej_valid_ = false; }
+  bool first_estimate_jacobians() const { return fej_; }
+
  protected:
+  bool fej_ = false;
+  bool fej_valid_ = false;  // fej_x_ holds the first estimate at time_
   explicit Robot(std::string name) : name_(std::move(name)) {}
   Map* map_ = nullptr;
   filter::BlockId block_ = filter::kNoBlock;
@@ -82,6 +90,7 @@ class ConstantVelocityRobot final : public Robot {
  private:
   models::ConstantVelocityParams params_;
   models::Vector13d x_tmp_;
+  models::Vector13d fej_x_, fej_tmp_;
   models::Matrix12d F_;
   models::Matrix12d Q_;
   Eigen::Matrix<double, 12, 6> N_;
@@ -120,6 +129,7 @@ class InertialRobot final : public Robot {
   RingBuffer<Sample> pending_{64};  // samples after time_ (reused: no allocation per sample)
   long steps_ = 0;
   models::Vector19d x_;
+  models::Vector19d fej_x_, fej_next_;
   models::Matrix18d F_, Q_, Phi_, Qacc_, tmp_;
   Eigen::Matrix<double, 18, 6> N_;
 };

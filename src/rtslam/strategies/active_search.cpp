@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/slam/batch_correction.hpp"
 #include "rtslam/slam/landmark_init.hpp"
 #include "rtslam/slam/observation.hpp"
 #include "rtslam/slam/sensor.hpp"
@@ -31,6 +32,9 @@ void ActiveSearchOptions::validate() const {
   require_bound(ransac_ntries >= 0, where, "ransac_ntries", ransac_ntries, ">= 0");
   require_bound(ransac_low_innov_px >= 0.0, where, "ransac_low_innov_px", ransac_low_innov_px, ">= 0");
   require_bound(gain_recomputations >= 1, where, "gain_recomputations", gain_recomputations, ">= 1");
+  require_bound(iterations >= 1 && iterations <= 20, where, "iterations", iterations, "in [1, 20]");
+  require_bound(iteration_tolerance > 0.0 && iteration_tolerance < 1.0, where, "iteration_tolerance",
+                iteration_tolerance, "in (0, 1)");
   require_bound(max_inits >= 0, where, "max_inits", max_inits, ">= 0");
   require_bound(max_search_size_px2 > 0.0, where, "max_search_size_px2", max_search_size_px2, "> 0");
   require_bound(margin_px >= 0.0, where, "margin_px", margin_px, ">= 0");
@@ -57,6 +61,8 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   map.get("ransac_ntries", o.ransac_ntries);
   map.get("ransac_low_innov_px", o.ransac_low_innov_px);
   map.get("gain_recomputations", o.gain_recomputations);
+  map.get("iterations", o.iterations);
+  map.get("iteration_tolerance", o.iteration_tolerance);
   map.get("max_inits", o.max_inits);
   map.get("max_search_size_px2", o.max_search_size_px2);
   map.get("margin_px", o.margin_px);
@@ -89,7 +95,6 @@ vision::ZnccOptions exhaustive(vision::ZnccOptions o) {
   o.two_level = false;
   return o;
 }
-constexpr int kMaxBatch = 32;
 }  // namespace
 
 ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, const slam::MapManager& map_manager,
@@ -111,10 +116,7 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
   report_.reserve(512);
   depths_.reserve(512);
   batch_.reserve(kMaxBatch);
-  batch_blocks_.reserve(kMaxBatch + 2);
-  batch_H_.resize(2 * kMaxBatch, 64 + slam::kMaxLandmarkTangent * kMaxBatch);
-  batch_y_.resize(2 * kMaxBatch);
-  batch_R_.resize(2 * kMaxBatch, 2 * kMaxBatch);
+  batch_obs_.reserve(kMaxBatch);
   // The predicted patches of as many candidates as reserved above, sized now so that frames do not allocate.
   warp_buf_.resize(candidates_.capacity());
   patches_.resize(candidates_.capacity());
@@ -179,48 +181,19 @@ bool ActiveSearchDataManager::search(Candidate& c, const vision::SearchEllipse& 
 }
 
 bool ActiveSearchDataManager::correct_batch(slam::Map& map, const std::vector<Candidate*>& batch) {
-  filter::State& state = map.state();
-  int k = 0;
-  int cols = 0;
-  int tr = 0;  // columns of the blocks shared by the batch (robot, and the sensor's extrinsics when estimated)
-  batch_blocks_.clear();
+  batch_obs_.clear();
   for (Candidate* c : batch) {
-    slam::Observation& o = *c->obs;
-    if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true) || !o.projectable) continue;
-    if (batch_blocks_.empty()) {
-      for (const filter::BlockId b : o.sensor_blocks()) batch_blocks_.push_back(b);
-      tr = static_cast<int>(o.H.cols()) - state.block(o.landmark_block()).tangent_size();
-      cols = tr;
-    }
-    batch_blocks_.push_back(o.landmark_block());
-    cols += state.block(o.landmark_block()).tangent_size();
-    ++k;
+    c->obs->z = c->z;
+    batch_obs_.push_back(c->obs);
   }
-  if (k == 0) return false;
-  const int m = 2 * k;
-  auto H = batch_H_.topLeftCorner(m, cols);
-  H.setZero();
-  int row = 0;
-  int col = tr;
-  for (Candidate* c : batch) {
-    const slam::Observation& o = *c->obs;
-    if (!o.projectable) continue;
-    const int tl = state.block(o.landmark_block()).tangent_size();
-    H.block(row, 0, 2, tr) = o.H.leftCols(tr);
-    H.block(row, col, 2, tl) = o.H.rightCols(tl);
-    batch_y_.segment<2>(row) = c->z - o.h;
-    row += 2;
-    col += tl;
-  }
-  auto R = batch_R_.topLeftCorner(m, m);
-  R.setZero();
-  row = 0;
-  for (Candidate* c : batch) {
-    if (!c->obs->projectable) continue;
-    R.block<2, 2>(row, row) = slam::measurement_noise(*c->obs, opt_.sigma_px, opt_.second_order_depth);
-    row += 2;
-  }
-  return state.correct(batch_blocks_, H, batch_y_.head(m), R).ok();
+  slam::BatchCorrectionOptions bo;
+  bo.sigma_px = opt_.sigma_px;
+  bo.second_order_depth = opt_.second_order_depth;
+  bo.iterations = opt_.iterations;
+  bo.iteration_tolerance = opt_.iteration_tolerance;
+  bo.lin_mean = lin();
+  const filter::CorrectionResult r = corrector_.correct(map.state(), batch_obs_, bo);
+  return r.ok() && corrector_.used() > 0;
 }
 
 void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, const slam::RawData& raw, long frame,
@@ -235,13 +208,25 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   if (dx_.size() != state.tangent_capacity()) dx_.setZero(state.tangent_capacity());
   if (hyp_mean_.size() != state.mean_vector().size()) hyp_mean_ = state.mean_vector();
 
+  // First-estimate Jacobians: the robot (and sensor) at this frame's prediction, before its corrections;
+  // Euclidean landmarks at their first estimate (made when their depth had converged); AHP landmarks, whose first
+  // depth is the prior's, at the current mean.
+  if (fej_) {
+    fej_mean_ = state.mean_vector();
+    for (const auto& l : map.landmarks()) {
+      if (l->type() != slam::LandmarkType::EuclideanPoint) continue;
+      const filter::BlockInfo& info = state.block(l->block());
+      if (l->first_estimate.size() == info.ambient_size()) fej_mean_.segment(info.ambient_offset, info.ambient_size()) = l->first_estimate;
+    }
+  }
+
   // 1. Predict all observations; keep the visible ones with a reasonable search region and a predicted patch.
   grid_.reset(rng_);
   candidates_.clear();
   for (const auto& l : map.landmarks()) {
     slam::Observation* o = l->observation_of(sensor);
     if (o == nullptr) continue;
-    if (!slam::predict_observation(state, state.mean_vector(), *o, opt_.margin_px, true)) continue;
+    if (!slam::predict_observation(state, state.mean_vector(), *o, opt_.margin_px, true, lin())) continue;
     slam::compute_innovation_covariance(state, *o, opt_.sigma_px, opt_.second_order_depth);
     o->counters.last_visible_frame = frame;
     grid_.occupy(o->h);
@@ -378,7 +363,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       Candidate& c = *order_[next++];
       if (c.done) continue;
       slam::Observation& o = *c.obs;
-      if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true)) continue;
+      if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true, lin())) continue;
       slam::compute_innovation_covariance(state, o, opt_.sigma_px, opt_.second_order_depth);
       const vision::SearchEllipse region = vision::SearchEllipse::from_covariance(o.h, o.S, opt_.n_sigma);
       const vision::Roi box = region.bounding_box();

@@ -27,6 +27,7 @@
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/models/landmarks/ahp.hpp"
+#include "rtslam/slam/batch_correction.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/slam/map.hpp"
 #include "rtslam/strategies/init_grid.hpp"
@@ -64,6 +65,8 @@ struct ActiveSearchOptions {
   int ransac_ntries = 6;              // RT-SLAM RANSAC_NTRIES (0 disables RANSAC: plain gated active search)
   double ransac_low_innov_px = 1.0;   // RT-SLAM RANSAC_LOW_INNOV: half-size of the hypothesis support box (px)
   int gain_recomputations = 3;        // RT-SLAM N_RECOMP_GAINS
+  int iterations = 1;                 // corrections relinearized this many times at most (1: EKF; > 1: iterated EKF)
+  double iteration_tolerance = 1e-6;  // ... until the correction changes by less than this (m, rad) between two
   int max_inits = 10;                 // RT-SLAM N_INIT
   double max_search_size_px2 = 10000; // RT-SLAM MAX_SEARCH_SIZE: skip larger search boxes (px²)
   double margin_px = 8.0;             // predictions closer to the border are not visible
@@ -88,12 +91,15 @@ struct ActiveSearchOptions {
 
 class ActiveSearchDataManager final : public slam::DataManager {
  public:
+  static constexpr int kMaxBatch = 32;  // observations in one batched correction
   ActiveSearchDataManager(ActiveSearchOptions options, const slam::MapManager& map_manager, int width, int height,
                           std::uint64_t seed);
   void process(slam::Map& map, slam::Sensor& sensor, const slam::RawData& raw, long frame,
                slam::FrameStats& stats) override;
   std::string name() const override { return "active-search"; }
   const ActiveSearchOptions& options() const { return opt_; }
+  /// First-estimate Jacobians for the observations (slam/consistency: fej; see process()).
+  void set_first_estimate_jacobians(bool on) { fej_ = on; }
 
   /// What happened to one visible observation in the last frame (overlays, tests).
   struct FrameMatch {
@@ -147,7 +153,10 @@ class ActiveSearchDataManager final : public slam::DataManager {
   vision::ZnccMatcher matcher_small_;  // tiny RANSAC boxes: exhaustive
   vision::HarrisDetector harris_;
   vision::ImageView image_;
-  std::vector<double> depths_;         // scene prior: distances of this frame's updated Euclidean landmarks
+  std::vector<double> depths_;
+  bool fej_ = false;
+  Eigen::VectorXd fej_mean_;  // the linearization mean of the frame (first-estimate Jacobians)
+  const Eigen::VectorXd* lin() const { return fej_ ? &fej_mean_ : nullptr; }  // iterated EKF: the batch's correction over its blocks         // scene prior: distances of this frame's updated Euclidean landmarks
   std::vector<Candidate> candidates_;
   std::vector<Candidate*> order_;
   std::vector<vision::Image> warp_buf_;
@@ -158,10 +167,8 @@ class ActiveSearchDataManager final : public slam::DataManager {
   std::vector<Eigen::Vector2d> support_z_;
   std::vector<Eigen::Vector2d> best_support_z_;
   std::vector<Candidate*> batch_;
-  std::vector<filter::BlockId> batch_blocks_;
-  Eigen::MatrixXd batch_H_;
-  Eigen::VectorXd batch_y_;
-  Eigen::MatrixXd batch_R_;
+  std::vector<slam::Observation*> batch_obs_;
+  slam::BatchCorrector corrector_{kMaxBatch};
   Eigen::VectorXd dx_;
   Eigen::VectorXd hyp_mean_;
   std::vector<FrameMatch> report_;

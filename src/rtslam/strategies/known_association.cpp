@@ -26,14 +26,13 @@ void KnownAssociationOptions::validate() const {
 KnownAssociationDataManager::KnownAssociationDataManager(KnownAssociationOptions options,
                                                          const slam::MapManager& map_manager, int width, int height,
                                                          std::uint64_t seed)
-    : opt_((options.validate(), options)), map_manager_(map_manager), grid_(width, height, opt_.grid), rng_(seed) {
+    : opt_((options.validate(), options)),
+      map_manager_(map_manager),
+      grid_(width, height, opt_.grid),
+      rng_(seed),
+      corrector_(std::max(1, (opt_.max_updates + opt_.gain_recomputations - 1) / opt_.gain_recomputations)) {
   candidates_.reserve(512);
-  const int per_round = (opt_.max_updates + opt_.gain_recomputations - 1) / opt_.gain_recomputations;
-  batch_.reserve(static_cast<size_t>(per_round));
-  batch_blocks_.reserve(static_cast<size_t>(per_round) + 2);
-  batch_H_.resize(2 * per_round, 64 + slam::kMaxLandmarkTangent * per_round);
-  batch_y_.resize(2 * per_round);
-  batch_R_.resize(2 * per_round, 2 * per_round);
+  batch_.reserve(static_cast<size_t>(corrector_.max_observations()));
 }
 
 namespace {
@@ -113,31 +112,9 @@ void KnownAssociationDataManager::process(slam::Map& map, slam::Sensor& sensor, 
       batch_.push_back(o);
     }
     if (batch_.empty()) continue;
-    // One batched correction: compressed H over [robot, landmark_1, ..., landmark_K].
-    const int m = 2 * static_cast<int>(batch_.size());
-    const slam::Observation& first = *batch_.front();
-    const int tr = static_cast<int>(first.H.cols()) - state.block(first.landmark_block()).tangent_size();
-    batch_blocks_.assign(first.sensor_blocks().begin(), first.sensor_blocks().end());
-    int cols = tr;
-    for (const slam::Observation* o : batch_) {
-      batch_blocks_.push_back(o->landmark_block());
-      cols += state.block(o->landmark_block()).tangent_size();
-    }
-    auto H = batch_H_.topLeftCorner(m, cols);
-    H.setZero();
-    int col = tr;
-    for (size_t k = 0; k < batch_.size(); ++k) {
-      const slam::Observation& o = *batch_[k];
-      const int tl = state.block(o.landmark_block()).tangent_size();
-      H.block(2 * static_cast<int>(k), 0, 2, tr) = o.H.leftCols(tr);
-      H.block(2 * static_cast<int>(k), col, 2, tl) = o.H.rightCols(tl);
-      batch_y_.segment<2>(2 * static_cast<int>(k)) = o.y;
-      col += tl;
-    }
-    auto R = batch_R_.topLeftCorner(m, m);
-    R.setIdentity();
-    R *= opt_.sigma_px * opt_.sigma_px;
-    const auto res = state.correct(batch_blocks_, H, batch_y_.head(m), R);
+    slam::BatchCorrectionOptions bo;
+    bo.sigma_px = opt_.sigma_px;
+    const auto res = corrector_.correct(state, batch_, bo);
     for (slam::Observation* o : batch_) {
       if (res.ok()) {
         ++o->counters.updated;

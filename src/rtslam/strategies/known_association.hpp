@@ -13,6 +13,7 @@
 
 #include "rtslam/core/random.hpp"
 #include "rtslam/models/landmarks/ahp.hpp"
+#include "rtslam/slam/batch_correction.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/slam/map.hpp"
 #include "rtslam/strategies/init_grid.hpp"
@@ -58,10 +59,7 @@ class KnownAssociationDataManager final : public slam::DataManager {
   std::vector<char> point_in_map_;
   std::vector<slam::Observation*> candidates_;
   std::vector<slam::Observation*> batch_;
-  std::vector<filter::BlockId> batch_blocks_;
-  Eigen::MatrixXd batch_H_;
-  Eigen::VectorXd batch_y_;
-  Eigen::MatrixXd batch_R_;
+  slam::BatchCorrector corrector_;
 };
 
 }  // namespace rtslam::strategies

@@ -69,6 +69,7 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   map.get("init_patch_size", o.init_patch_size);
   map.get("d_min", o.prior.d_min);
   map.get("depth_prior", o.depth_prior);
+  map.get("depth_prior_sigma_ratio", o.prior.sigma_ratio);
   map.get("scene_prior_min_points", o.scene_prior_min_points);
   {
     YamlMap g = map.child("grid");
@@ -203,6 +204,13 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   if (!img || img->image.empty()) throw ConfigError("active-search data manager: raw data is not an image");
   const auto t0 = Clock::now();
   image_ = img->image;
+  if (img->image.width != reserved_width_ || img->image.height != reserved_height_) {
+    // Search regions are bounded by max_search_size_px2: the matchers' buffers reach their final sizes now.
+    reserved_width_ = img->image.width;
+    reserved_height_ = img->image.height;
+    matcher_.reserve(opt_.max_search_size_px2, reserved_width_, reserved_height_);
+    matcher_small_.reserve(opt_.max_search_size_px2, reserved_width_, reserved_height_);
+  }
   filter::State& state = map.state();
   const double gate = opt_.n_sigma * opt_.n_sigma;
   if (dx_.size() != state.tangent_capacity()) dx_.setZero(state.tangent_capacity());
@@ -430,10 +438,15 @@ models::AhpPrior ActiveSearchDataManager::frame_prior(const slam::Map& map, cons
     if (!c.updated || c.obs->landmark->type() != slam::LandmarkType::EuclideanPoint) continue;
     depths_.push_back((c.obs->landmark->position(mean) - p_WS).norm());
   }
-  if (static_cast<int>(depths_.size()) < opt_.scene_prior_min_points) return opt_.prior;
+  if (static_cast<int>(depths_.size()) < opt_.scene_prior_min_points) {
+    if (depth_hint_m_ <= 0.0) return opt_.prior;
+    models::AhpPrior hinted = opt_.prior;
+    hinted.d_min = 0.5 * depth_hint_m_;
+    return hinted;
+  }
   const auto mid = depths_.begin() + static_cast<std::ptrdiff_t>(depths_.size() / 2);
   std::nth_element(depths_.begin(), mid, depths_.end());
-  models::AhpPrior p;
+  models::AhpPrior p = opt_.prior;
   p.d_min = 0.5 * *mid;
   return p.d_min > 0.0 && std::isfinite(p.d_min) ? p : opt_.prior;
 }

@@ -17,6 +17,7 @@
 //     `init_patch_size` patch around the corner plus the sensor pose T_WS it was seen from.
 // Unmatched and gated-out observations count as failures for the map manager. The same seed and images give the
 // same result. Buffers are reserved once: a frame allocates nothing after warm-up.
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -98,6 +99,9 @@ class ActiveSearchDataManager final : public slam::DataManager {
                slam::FrameStats& stats) override;
   std::string name() const override { return "active-search"; }
   const ActiveSearchOptions& options() const { return opt_; }
+  /// A scene depth known from elsewhere (the visual-inertial start's features, m): with depth_prior scene, new
+  /// landmarks take the prior of this depth until the map's own converged landmarks give one (0: none).
+  void set_depth_hint(double depth_m) { depth_hint_m_ = depth_m > 0.0 && std::isfinite(depth_m) ? depth_m : 0.0; }
   /// First-estimate Jacobians for the observations (slam/consistency: fej; see process()).
   void set_first_estimate_jacobians(bool on) { fej_ = on; }
 
@@ -151,10 +155,12 @@ class ActiveSearchDataManager final : public slam::DataManager {
   double match_ms_ = 0.0;              // time spent in search() this frame
   vision::ZnccMatcher matcher_;        // full ellipses (two-level as configured)
   vision::ZnccMatcher matcher_small_;  // tiny RANSAC boxes: exhaustive
+  int reserved_width_ = 0, reserved_height_ = 0;  // image size the matchers' buffers were grown for
   vision::HarrisDetector harris_;
   vision::ImageView image_;
   std::vector<double> depths_;
   bool fej_ = false;
+  double depth_hint_m_ = 0.0;
   Eigen::VectorXd fej_mean_;  // the linearization mean of the frame (first-estimate Jacobians)
   const Eigen::VectorXd* lin() const { return fej_ ? &fej_mean_ : nullptr; }  // iterated EKF: the batch's correction over its blocks         // scene prior: distances of this frame's updated Euclidean landmarks
   std::vector<Candidate> candidates_;

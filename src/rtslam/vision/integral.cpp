@@ -192,6 +192,11 @@ RTSLAM_AVX2 void row_sum_avx2(const std::uint8_t* src, int w, const std::uint32_
 
 }  // namespace
 
+void IntegralImages::reserve(std::size_t n_pixels, bool with_squares) {
+  sum_.reserve(n_pixels);
+  if (with_squares) sq_.reserve(n_pixels);
+}
+
 void IntegralImages::compute(ImageView image, Roi roi, bool with_squares) {
   roi_ = roi.intersect(image.rect());
   stride_ = roi_.w + 1;

@@ -25,6 +25,8 @@ class IntegralImages {
   static constexpr int kMaxExactSqPx = 66051;
 
   /// Computes the tables over `roi` (clipped to the image). With with_squares = false only the sum table is built.
+  /// Grows the tables to hold an roi of up to n_pixels pixels without allocating in compute().
+  void reserve(std::size_t n_pixels, bool with_squares = true);
   void compute(ImageView image, Roi roi, bool with_squares = true);
   /// Over the whole image.
   void compute(ImageView image, bool with_squares = true) { compute(image, image.rect(), with_squares); }

@@ -459,6 +459,43 @@ double parabola_offset(double rm, double r0, double rp) {
 
 }  // namespace
 
+void ZnccMatcher::reserve(double max_area_px2, int width, int height) {
+  RTSLAM_CHECK(max_area_px2 > 0.0 && width > 0 && height > 0, "ZnccMatcher::reserve: empty bounds");
+  const int h = options_.patch_size / 2;
+  const int hs = (options_.patch_size + 1) / 2;  // upper bound of the half-resolution template size
+  const int max_w = std::max(1, width - 2 * h), max_h = std::max(1, height - 2 * h);
+  // Every buffer size is a function of the box's width and height; scan the widths, each with the tallest box the
+  // area allows, and keep the largest need of each buffer.
+  std::size_t n_pos = 0, n_rows = 0, n_half = 0, n_table = 0, n_coarse = 0, n_dots = 0, n_integral = 0;
+  for (int w = 1; w <= max_w; ++w) {
+    const int bh = std::min(max_h, static_cast<int>(max_area_px2 / w));
+    if (bh < 1) break;
+    const auto sz = [](long a, long b) { return static_cast<std::size_t>(a) * static_cast<std::size_t>(b); };
+    const int kx = (w - 1) / 2 + 1, ky = (bh - 1) / 2 + 1;
+    const int hw = kx - 1 + hs, hh = ky - 1 + hs;
+    n_pos = std::max(n_pos, sz(w, bh));
+    n_rows = std::max(n_rows, sz(2 * hh + 1, hw));
+    n_half = std::max(n_half, sz(hw, hh) + 16);
+    n_table = std::max(n_table, sz(hw + 1, hh + 1));
+    n_coarse = std::max(n_coarse, sz(kx, ky));
+    n_dots = std::max(n_dots, static_cast<std::size_t>(kx));
+    n_integral = std::max(n_integral, sz(w + 2 * h + 3, bh + 2 * h + 3));
+  }
+  scores_.reserve(n_pos);
+  state_.reserve(n_pos);
+  if (options_.two_level) {
+    half_rows_.reserve(n_rows);
+    half_.reserve(n_half);
+    half_sum_.reserve(n_table);
+    half_sq_.reserve(n_table);
+    coarse_.reserve(n_coarse);
+    candidates_.reserve(n_coarse);
+    half_dots_.reserve(n_dots);
+  } else {
+    integral_.reserve(n_integral, true);
+  }
+}
+
 MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const SearchEllipse& region) {
   RTSLAM_CHECK(patch.size() == options_.patch_size, "ZnccMatcher::match: patch size differs from options.patch_size");
   MatchResult res;

@@ -153,6 +153,10 @@ class ZnccMatcher {
   /// the image are not evaluated.
   MatchResult match(const Patch& patch, ImageView image, const SearchEllipse& region);
 
+  /// Grows the buffers to what any search region of bounding-box area <= max_area_px2 in an image of
+  /// width x height needs, so that match() allocates nothing afterwards (call once the image size is known).
+  void reserve(double max_area_px2, int width, int height);
+
  private:
   ZnccOptions options_;
   IntegralImages integral_;  // exhaustive search only

@@ -17,6 +17,7 @@
 #include "rtslam/pipeline/config_common.hpp"
 #include "rtslam/sim/simulation.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
+#include "rtslam/pipeline/vi_init.hpp"
 #include "rtslam/slam/health.hpp"
 #include "rtslam/slam/system.hpp"
 
@@ -136,6 +137,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   s["init_patch_size"] = a.init_patch_size;
   s["d_min"] = a.prior.d_min;
   s["depth_prior"] = a.depth_prior;
+  s["depth_prior_sigma_ratio"] = a.prior.sigma_ratio;
   s["scene_prior_min_points"] = a.scene_prior_min_points;
   s["grid"]["cells_x"] = a.grid.cells_x;
   s["grid"]["cells_y"] = a.grid.cells_y;
@@ -278,7 +280,7 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
   slam::Robot* robot = nullptr;
   auto dm_ptr = std::make_unique<strategies::ActiveSearchDataManager>(o.search, mm, intr.width, intr.height,
                                                                       o.seed * 7919 + 1);
-  const strategies::ActiveSearchDataManager& dm = *dm_ptr;
+  strategies::ActiveSearchDataManager& dm = *dm_ptr;
   if (o.consistency == "fej") {
     dm_ptr->set_first_estimate_jacobians(true);
     robot_ptr->set_first_estimate_jacobians(true);
@@ -298,7 +300,7 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
   bool stop = false;
   // The last 2·init_window + 1 s of IMU samples: the start's window, and the health monitor's re-initializations.
   RingBuffer<ImuWindowSample> recent_imu(static_cast<std::size_t>(
-      std::max(64.0, (2.0 * o.imu.init_window_s + 1.0) * (rig.imu ? std::max(rig.imu->rate_hz, 1.0) : 200.0) * 1.5)));
+      std::max(64.0, (2.0 * o.imu.init_window_s + o.imu.vi_init.max_window_s + 2.0) * (rig.imu ? std::max(rig.imu->rate_hz, 1.0) : 200.0) * 1.5)));
   const auto window_of = [&]() {
     std::vector<ImuWindowSample> w;
     w.reserve(recent_imu.size());
@@ -310,6 +312,52 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
   RingBuffer<io::ImageFrame> waiting(8);     // images not yet covered by the IMU
   std::optional<TimeNs> last_imu_t;
 
+  // The health monitor's recovery drops every landmark; the robot then starts again through the same start
+  // procedure (the inertial robot: its frames wait for a new visual-inertial or IMU-only start, `restarting`), in the
+  // same world frame: at its last healthy position and heading, biases kept when plausible.
+  bool restarting = false;
+  // Places the robot at time t with the prior (x0, P0) of a start, expressed in its own start frame: the first start
+  // attaches it to the map (that frame becomes the world frame), a restart re-initializes it in the current world.
+  const auto begin_robot = [&](Eigen::VectorXd x0, const Eigen::MatrixXd& P0, TimeNs t) {
+    if (robot == nullptr) {
+      robot = &map.add_robot(std::move(robot_ptr), x0, P0, t);
+      if (inertial) {
+        for (std::size_t k = 0; k < recent_imu.size(); ++k) imu_robot->add_imu(recent_imu[k].t, recent_imu[k].m);
+      }
+      raw.sensor_id = sensor.id();
+    } else {
+      if (inertial) {
+        using I = models::InertialIndex;
+        // Heading: of the body axis most orthogonal to gravity, in both frames (see gravity_aligned_attitude).
+        const Eigen::Quaterniond q_new = math::quat_from_wxyz(x0.segment<4>(I::kQ));
+        const Eigen::Quaterniond q_old = math::quat_from_wxyz(last_good_x.segment<4>(I::kQ));
+        const Eigen::Vector3d up_R = q_new.conjugate() * Eigen::Vector3d::UnitZ();
+        int k = 0;
+        up_R.cwiseAbs().minCoeff(&k);
+        const Eigen::Vector3d h_new = q_new * Eigen::Vector3d::Unit(k), h_old = q_old * Eigen::Vector3d::Unit(k);
+        const Eigen::Quaterniond Rz(Eigen::AngleAxisd(
+            std::atan2(h_old.y(), h_old.x()) - std::atan2(h_new.y(), h_new.x()), Eigen::Vector3d::UnitZ()));
+        x0.segment<3>(I::kP) = last_good_x.segment<3>(I::kP);
+        x0.segment<4>(I::kQ) = math::quat_to_wxyz((Rz * q_new).normalized());
+        x0.segment<3>(I::kV) = Rz * x0.segment<3>(I::kV);
+        x0.segment<3>(I::kG) = Rz * x0.segment<3>(I::kG);
+        if (last_good_x.segment<3>(I::kAb).norm() <= 0.5 * o.health.max_accel_bias &&
+            last_good_x.segment<3>(I::kWb).norm() <= 0.5 * o.health.max_gyro_bias) {
+          x0.segment<3>(I::kAb) = last_good_x.segment<3>(I::kAb);
+          if (x0.segment<3>(I::kWb).isZero()) x0.segment<3>(I::kWb) = last_good_x.segment<3>(I::kWb);
+        }
+      } else {
+        x0.head<7>() = last_good_x.head<7>();
+      }
+      robot->reset(x0, P0, t);
+      restarting = false;
+    }
+    monitor.restart(t);
+    last_good_x = map.state().mean(robot->block());
+  };
+  std::vector<ViInitFrame> init_frames;  // inertial robot: the visual-inertial start's window
+  const auto vi_camera = std::make_unique<models::PinholeCamera>(intr);
+
   // Starts the filter at time t (the first image); false while the inertial window is incomplete.
   const auto start = [&](TimeNs t) -> bool {
     if (inertial) {
@@ -317,8 +365,8 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
       const InertialStart s0 = initialize_inertial(window_of(), t, o.imu);
       result.inertial_start = s0.describe();
       logger("slam")->info("inertial robot: {}", result.inertial_start);
-      robot = &map.add_robot(std::move(robot_ptr), s0.x, s0.P, t);
-      for (std::size_t k = 0; k < recent_imu.size(); ++k) imu_robot->add_imu(recent_imu[k].t, recent_imu[k].m);
+      begin_robot(s0.x, s0.P, t);
+      return true;
     } else {
       // The gauge: the first pose is the world frame (identity), with zero covariance.
       Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
@@ -330,72 +378,55 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
         x0 = known->robot_mean;
         P0 = known->robot_cov;
       }
-      robot = &map.add_robot(std::move(robot_ptr), x0, P0, t);
-      if (known) result.known_landmarks = add_known_landmarks(map, sensor, *known);
+      const bool first = robot == nullptr;
+      begin_robot(x0, P0, t);
+      if (known && first) result.known_landmarks = add_known_landmarks(map, sensor, *known);
     }
-    raw.sensor_id = sensor.id();
-    monitor.restart(t);
-    last_good_x = map.state().mean(robot->block());
     return true;
   };
 
-  // The health monitor's recovery: every landmark is dropped and the robot starts again at time t from its last
-  // healthy state — position and heading kept (the trajectory goes on in the same world frame), velocity unknown
-  // (the in-motion prior), and for the inertial robot the attitude's tilt and gravity re-estimated from the last
-  // IMU window (a corrupted IMU burst leaves the attitude wrong), biases kept when plausible.
-  const auto reinitialize = [&](TimeNs t) {
-    while (!map.landmarks().empty()) map.remove_landmark(*map.landmarks().back());
-    Eigen::VectorXd x = last_good_x;
-    Eigen::MatrixXd P;
-    if (inertial) {
-      using I = models::InertialIndex;
-      InertialOptions motion = o.imu;
-      motion.init = "motion";
-      const InertialStart s0 = initialize_inertial(window_of(), t, motion);
-      // Heading: of the body axis most orthogonal to gravity, in both frames (see gravity_aligned_attitude).
-      const Eigen::Quaterniond q_new = math::quat_from_wxyz(s0.x.segment<4>(I::kQ));
-      const Eigen::Quaterniond q_old = math::quat_from_wxyz(x.segment<4>(I::kQ));
-      const Eigen::Vector3d up_R = q_new.conjugate() * Eigen::Vector3d::UnitZ();
-      int k = 0;
-      up_R.cwiseAbs().minCoeff(&k);
-      const Eigen::Vector3d h_new = q_new * Eigen::Vector3d::Unit(k), h_old = q_old * Eigen::Vector3d::Unit(k);
-      const double dyaw = std::atan2(h_old.y(), h_old.x()) - std::atan2(h_new.y(), h_new.x());
-      const Eigen::Quaterniond Rz(Eigen::AngleAxisd(dyaw, Eigen::Vector3d::UnitZ()));
-      x.segment<4>(I::kQ) = math::quat_to_wxyz((Rz * q_new).normalized());
-      x.segment<3>(I::kV).setZero();
-      x.segment<3>(I::kG) = Rz * s0.x.segment<3>(I::kG);
-      if (!(x.segment<3>(I::kAb).norm() <= o.health.max_accel_bias) ||
-          !(x.segment<3>(I::kWb).norm() <= o.health.max_gyro_bias)) {
-        x.segment<3>(I::kAb) = s0.x.segment<3>(I::kAb);
-        x.segment<3>(I::kWb) = s0.x.segment<3>(I::kWb);
-      }
-      P = motion_prior_covariance(o.imu, (Rz * q_new).toRotationMatrix());
-    } else {
-      x.segment<6>(7).setZero();
-      P = Eigen::MatrixXd::Zero(12, 12);
-      P.bottomRightCorner<6, 6>() = o.initial_velocity_std * o.initial_velocity_std * Eigen::MatrixXd::Identity(6, 6);
+  // The visual-inertial start (vi_init.hpp) over the buffered window: true once the robot is in the map at the
+  // window's first image (the caller then processes the buffered images). While it fails the window slides; after
+  // vi_init/max_wait of failures the IMU-only start takes over at the newest image.
+  TimeNs first_image_t = -1;
+  const auto try_vi_start = [&]() -> bool {
+    if (first_image_t < 0) first_image_t = init_frames.front().t;
+    if (init_frames.back().t - init_frames.front().t < from_seconds(o.imu.vi_init.window_s)) return false;
+    const ViInitResult r = initialize_visual_inertial(init_frames, window_of(), *vi_camera, T_RS, o.imu.vi_init);
+    if (r.kind != ViInitResult::Kind::Failed) {
+      const InertialStart s0 = inertial_start_from_vi(r, o.imu);
+      result.inertial_start = r.describe() + "; " + s0.describe();
+      logger("slam")->info("inertial robot: {}", result.inertial_start);
+      begin_robot(s0.x, s0.P, init_frames.front().t);
+      if (r.kind == ViInitResult::Kind::Dynamic) dm.set_depth_hint(r.median_depth_m);
+      return true;
     }
-    robot->reset(x, P);
-    monitor.restart(t);
+    logger("slam")->debug("visual-inertial start at t = {:.3f} s: {}", to_seconds(init_frames.front().t), r.reason);
+    if (init_frames.back().t - first_image_t > from_seconds(o.imu.vi_init.max_window_s + o.imu.vi_init.max_wait_s) &&
+        start(init_frames.back().t)) {
+      logger("slam")->info("visual-inertial start failed for {:.1f} s ({}): IMU-only start", o.imu.vi_init.max_wait_s,
+                           r.reason);
+      result.images_before_start += static_cast<int>(init_frames.size()) - 1;
+      init_frames.erase(init_frames.begin(), init_frames.end() - 1);
+      return true;
+    }
+    // Not enough parallax or excitation yet: the window grows (up to max_window); else it slides.
+    if (r.needs_longer_window &&
+        init_frames.back().t - init_frames.front().t < from_seconds(o.imu.vi_init.max_window_s)) {
+      return false;
+    }
+    init_frames.erase(init_frames.begin());
+    ++result.images_before_start;
+    return false;
   };
 
-  const auto process_image = [&](const io::ImageFrame& frame) {
-    ++consumed;
-    const TimeNs t = frame.t + t_d;
-    if (robot == nullptr && !start(t)) {
-      ++result.images_before_start;
-      if (result.images_before_start == 1) {
-        logger("slam")->info("waiting for {:.2f} s of IMU data before the first image to start the inertial robot",
-                             o.imu.init_window_s);
-      }
-      if (on_frame) on_frame(consumed, n_total);
-      return;
-    }
+  // One image through the filter (the robot is in the map).
+  const auto filter_image = [&](const cv::Mat& image, TimeNs t) {
+    if (stop) return;
     raw.t = t;
-    raw.image = vision::ImageView{frame.image.data, frame.image.cols, frame.image.rows,
-                                  static_cast<int>(frame.image.step[0])};
+    raw.image = vision::ImageView{image.data, image.cols, image.rows, static_cast<int>(image.step[0])};
     slam::FrameStats& fs = result.frames.emplace_back(system.process(raw));
-    if (done == o.overlay_frame) write_overlay(o.overlay_path, frame.image, dm.last_frame(), o.search.n_sigma);
+    if (done == o.overlay_frame) write_overlay(o.overlay_path, image, dm.last_frame(), o.search.n_sigma);
     StampedPose est;
     est.t = t;
     const math::Pose T_WR = robot->pose();
@@ -420,17 +451,48 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
       logger("slam")->warn("t = {:.3f} s: tracking {}: {}{}", to_seconds(t), slam::to_string(verdict.health),
                            verdict.reason, o.health.reset ? "; re-initializing" : "");
       if (o.health.reset) {
-        reinitialize(t);
+        while (!map.landmarks().empty()) map.remove_landmark(*map.landmarks().back());
         fs.reset = true;
         ++result.resets;
+        if (inertial) {
+          restarting = true;  // the next images go to the start procedure
+          first_image_t = -1;
+        } else {
+          start(t);  // the constant-velocity robot starts again at once, at rest
+        }
       }
     }
     if (observer) observer(ImageSlamFrame{done, t, &map, &dm.last_frame()});
     ++done;
-    if (on_frame) on_frame(consumed, n_total);
     if (o.max_frames > 0 && done >= o.max_frames) stop = true;
   };
 
+
+  const auto process_image = [&](const io::ImageFrame& frame) {
+    ++consumed;
+    const TimeNs t = frame.t + t_d;
+    if ((robot == nullptr || restarting) && inertial && o.imu.vi_init.enabled) {
+      init_frames.push_back(ViInitFrame{t, frame.image});
+      if (try_vi_start()) {
+        for (const ViInitFrame& f : init_frames) filter_image(f.image, f.t);
+        init_frames.clear();
+        init_frames.shrink_to_fit();
+      }
+      if (on_frame) on_frame(consumed, n_total);
+      return;
+    }
+    if ((robot == nullptr || restarting) && !start(t)) {
+      ++result.images_before_start;
+      if (result.images_before_start == 1) {
+        logger("slam")->info("waiting for {:.2f} s of IMU data before the first image to start the inertial robot",
+                             o.imu.init_window_s);
+      }
+      if (on_frame) on_frame(consumed, n_total);
+      return;
+    }
+    filter_image(frame.image, t);
+    if (on_frame) on_frame(consumed, n_total);
+  };
   while (!stop) {
     auto m = source.next();
     if (!m) break;

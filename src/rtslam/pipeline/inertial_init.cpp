@@ -36,9 +36,87 @@ void InertialOptions::validate() const {
                                std::pair{"gyroscope_random_walk", gyroscope_random_walk}}) {
     if (v) require_bound(*v > 0.0 && *v < 10.0, w, key, *v, "in (0, 10)");
   }
+  vi_init.validate();
   if (time_offset_s) require_bound(std::abs(*time_offset_s) < 1.0, w, "time_offset", *time_offset_s, "within ±1 s");
   if (gyro_saturation) require_bound(*gyro_saturation > 0.0, w, "gyro_saturation", *gyro_saturation, "> 0 rad/s");
   if (accel_saturation) require_bound(*accel_saturation > 0.0, w, "accel_saturation", *accel_saturation, "> 0 m/s²");
+}
+
+void ViInitOptions::validate() const {
+  const std::string w = "imu/vi_init";
+  require_bound(window_s > 0.0 && window_s <= 5.0, w, "window", window_s, "in (0, 5] s");
+  require_bound(max_window_s >= window_s && max_window_s <= 10.0, w, "max_window", max_window_s,
+                "in [window, 10] s");
+  require_bound(min_excitation_m >= 0.0 && min_excitation_m < 10.0, w, "min_excitation_m", min_excitation_m,
+                "in [0, 10) m");
+  require_bound(max_wait_s >= 0.0 && max_wait_s <= 60.0, w, "max_wait", max_wait_s, "in [0, 60] s");
+  require_bound(min_frames >= 3 && min_frames <= 500, w, "min_frames", min_frames, "in [3, 500]");
+  require_bound(cells_x >= 1 && cells_x <= 64, w, "cells_x", cells_x, "in [1, 64]");
+  require_bound(cells_y >= 1 && cells_y <= 64, w, "cells_y", cells_y, "in [1, 64]");
+  require_bound(patch_size >= 5 && patch_size <= 41 && patch_size % 2 == 1, w, "patch_size", patch_size,
+                "odd, in [5, 41]");
+  require_bound(min_score > 0.0 && min_score < 1.0, w, "min_score", min_score, "in (0, 1)");
+  require_bound(search_px >= 2.0 && search_px <= 200.0, w, "search_px", search_px, "in [2, 200] px");
+  require_bound(min_features >= 4 && min_features <= 4096, w, "min_features", min_features, "in [4, 4096]");
+  require_bound(standstill_max_disparity_px > 0.0 && standstill_max_disparity_px < 100.0, w,
+                "standstill_max_disparity_px", standstill_max_disparity_px, "in (0, 100) px");
+  require_bound(min_parallax_px > 0.0 && min_parallax_px < 1000.0, w, "min_parallax_px", min_parallax_px,
+                "in (0, 1000) px");
+  require_bound(max_reprojection_px > 0.0 && max_reprojection_px < 100.0, w, "max_reprojection_px",
+                max_reprojection_px, "in (0, 100) px");
+  require_bound(gravity > 1.0 && gravity < 30.0, w, "gravity", gravity, "in (1, 30) m/s²");
+  require_bound(max_speed > 0.0 && max_speed <= 1e4, w, "max_speed", max_speed, "in (0, 1e4] m/s");
+  require_bound(max_split_gravity_deg > 0.0 && max_split_gravity_deg <= 90.0, w, "max_split_gravity_deg",
+                max_split_gravity_deg, "in (0, 90] deg");
+  require_bound(max_split_velocity_ratio > 0.0 && max_split_velocity_ratio <= 10.0, w, "max_split_velocity_ratio",
+                max_split_velocity_ratio, "in (0, 10]");
+}
+
+void read_vi_init(YamlMap m, ViInitOptions& o) {
+  m.get("enabled", o.enabled);
+  m.get("window", o.window_s);
+  m.get("max_wait", o.max_wait_s);
+  m.get("max_window", o.max_window_s);
+  m.get("min_excitation_m", o.min_excitation_m);
+  m.get("min_frames", o.min_frames);
+  m.get("cells_x", o.cells_x);
+  m.get("cells_y", o.cells_y);
+  m.get("patch_size", o.patch_size);
+  m.get("min_score", o.min_score);
+  m.get("search_px", o.search_px);
+  m.get("min_features", o.min_features);
+  m.get("standstill_max_disparity_px", o.standstill_max_disparity_px);
+  m.get("min_parallax_px", o.min_parallax_px);
+  m.get("max_reprojection_px", o.max_reprojection_px);
+  m.get("gravity", o.gravity);
+  m.get("max_speed", o.max_speed);
+  m.get("max_split_gravity_deg", o.max_split_gravity_deg);
+  m.get("max_split_velocity_ratio", o.max_split_velocity_ratio);
+  m.finish();
+}
+
+YAML::Node vi_init_to_yaml(const ViInitOptions& o) {
+  YAML::Node n;
+  n["enabled"] = o.enabled;
+  n["window"] = o.window_s;
+  n["max_wait"] = o.max_wait_s;
+  n["max_window"] = o.max_window_s;
+  n["min_excitation_m"] = o.min_excitation_m;
+  n["min_frames"] = o.min_frames;
+  n["cells_x"] = o.cells_x;
+  n["cells_y"] = o.cells_y;
+  n["patch_size"] = o.patch_size;
+  n["min_score"] = o.min_score;
+  n["search_px"] = o.search_px;
+  n["min_features"] = o.min_features;
+  n["standstill_max_disparity_px"] = o.standstill_max_disparity_px;
+  n["min_parallax_px"] = o.min_parallax_px;
+  n["max_reprojection_px"] = o.max_reprojection_px;
+  n["gravity"] = o.gravity;
+  n["max_speed"] = o.max_speed;
+  n["max_split_gravity_deg"] = o.max_split_gravity_deg;
+  n["max_split_velocity_ratio"] = o.max_split_velocity_ratio;
+  return n;
 }
 
 void read_inertial(YamlMap m, InertialOptions& o) {
@@ -57,6 +135,7 @@ void read_inertial(YamlMap m, InertialOptions& o) {
   m.get("estimate_extrinsics", o.estimate_extrinsics);
   m.get("extrinsics_std_m", o.extrinsics_std_m);
   m.get("extrinsics_std_deg", o.extrinsics_std_deg);
+  if (m.has("vi_init")) read_vi_init(m.child("vi_init"), o.vi_init);
   double v = 0.0;
   if (m.has("time_offset")) { m.get("time_offset", v); o.time_offset_s = v; }
   if (m.has("accelerometer_noise_density")) { m.get("accelerometer_noise_density", v); o.accelerometer_noise_density = v; }
@@ -85,6 +164,7 @@ YAML::Node inertial_to_yaml(const InertialOptions& o) {
   n["estimate_extrinsics"] = o.estimate_extrinsics;
   n["extrinsics_std_m"] = o.extrinsics_std_m;
   n["extrinsics_std_deg"] = o.extrinsics_std_deg;
+  n["vi_init"] = vi_init_to_yaml(o.vi_init);
   if (o.time_offset_s) n["time_offset"] = *o.time_offset_s;
   if (o.accelerometer_noise_density) n["accelerometer_noise_density"] = *o.accelerometer_noise_density;
   if (o.gyroscope_noise_density) n["gyroscope_noise_density"] = *o.gyroscope_noise_density;
@@ -112,13 +192,14 @@ models::InertialParams inertial_params(const std::optional<io::ImuCalibration>& 
 
 std::string InertialStart::describe() const {
   const Eigen::Vector3d g = x.segment<3>(InertialIndex::kG);
-  return fmt::format("{} start from {} IMU samples (gyro std {:.3f} rad/s, accel std {:.3f} m/s²): |g| = {:.3f} m/s², "
-                     "gyro bias ({:.4f}, {:.4f}, {:.4f}) rad/s",
-                     standstill ? "standstill" : "in-motion", samples, gyro_std, accel_std, g.norm(),
+  const std::string kind = standstill ? "standstill" : "in-motion";
+  const std::string from = samples > 0 ? fmt::format(" from {} IMU samples (gyro std {:.3f} rad/s, accel std {:.3f} m/s²)",
+                                                     samples, gyro_std, accel_std)
+                                       : std::string();
+  return fmt::format("{} start{}: |g| = {:.3f} m/s², gyro bias ({:.4f}, {:.4f}, {:.4f}) rad/s", kind, from, g.norm(),
                      x[InertialIndex::kWb], x[InertialIndex::kWb + 1], x[InertialIndex::kWb + 2]);
 }
 
-namespace {
 // The prior of [v a_b ω_b g] with g = −R f̄, f̄ = mean(R_k (f_k − a_b)) + a_b: g's error is the accelerometer bias error
 // rotated into W (correlated with a_b: ∂g/∂a_b = R) plus g_std (the spread of the mean, or the unknown mean
 // acceleration in motion).
@@ -134,7 +215,6 @@ Eigen::Matrix<double, 18, 18> prior_covariance(double v_std, double ab_std, doub
   P.block<3, 3>(I::kDab, I::kDg) = P.block<3, 3>(I::kDg, I::kDab).transpose();
   return P;
 }
-}  // namespace
 
 Eigen::Matrix<double, 18, 18> motion_prior_covariance(const InertialOptions& o, const Eigen::Matrix3d& R_WR) {
   return prior_covariance(o.velocity_std_motion, o.accel_bias_std, o.gyro_bias_std, o.gravity_std_motion, R_WR);

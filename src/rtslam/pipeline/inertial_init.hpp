@@ -31,6 +31,32 @@
 
 namespace rtslam::pipeline {
 
+struct ViInitOptions {
+  bool enabled = true;
+  double window_s = 0.4;                      // images used: the first window_s seconds ...
+  double max_window_s = 2.0;                  // ... growing up to this while parallax or excitation lack
+  double min_excitation_m = 0.1;              // m: displacement the accelerations must cause over the window
+  double max_wait_s = 1.0;                    // s of failed windows before the IMU-only start takes over
+  int min_frames = 5;
+  int cells_x = 8, cells_y = 5;               // feature grid (one Harris corner per cell)
+  int patch_size = 15;                        // ZNCC template (odd)
+  double min_score = 0.8;                     // ZNCC acceptance
+  double search_px = 40.0;                    // half-size of the search box around the rotation-predicted position
+  int min_features = 12;                      // tracked through the whole window
+  double standstill_max_disparity_px = 1.0;   // median feature displacement over the window: at rest below this
+  double min_parallax_px = 8.0;               // median displacement after derotation needed for the dynamic solution
+  double max_reprojection_px = 2.0;           // RMS of the solution's reprojection errors
+  double gravity = 9.81;                      // m/s², the magnitude |g| imposed
+  double max_speed = 20.0;                    // m/s: a larger v₀ is rejected
+  double max_split_gravity_deg = 1.5;         // the window's first and last two thirds solved apart: gravity and
+  double max_split_velocity_ratio = 0.1;      // velocity must agree within these (velocity: 0.05 m/s + ratio·|v₀|)
+  void validate() const;
+};
+/// imu/vi_init: {enabled, window, min_frames, cells_x, cells_y, patch_size, min_score, search_px, min_features,
+/// standstill_max_disparity_px, min_parallax_px, max_reprojection_px, gravity, max_speed}.
+void read_vi_init(YamlMap section, ViInitOptions& o);
+YAML::Node vi_init_to_yaml(const ViInitOptions& o);
+
 struct InertialOptions {
   std::string init = "auto";              // auto | standstill | motion
   double init_window_s = 0.5;             // IMU seconds used to initialize
@@ -56,6 +82,7 @@ struct InertialOptions {
   bool estimate_extrinsics = false;       // camera–IMU T_RS as a map block, from the calibration with the prior:
   double extrinsics_std_m = 0.02;         //   position std (m, per axis) ...
   double extrinsics_std_deg = 1.0;        //   ... and rotation std (deg, per axis)
+  ViInitOptions vi_init;                  // the visual-inertial start (vi_init.hpp); disabled: IMU-only start
   void validate() const;
 };
 
@@ -83,6 +110,12 @@ struct InertialStart {
 
 /// The initial state at time t from the samples of [t − window, t] (at least 10 of them; DataError otherwise).
 InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, TimeNs t, const InertialOptions& o);
+
+/// The prior of [v a_b ω_b g] (tangent 18 × 18, zero on the pose rows) with these standard deviations; g = −R f̄
+/// absorbs the accelerometer bias error rotated into W, so g's block gets ab_std² + g_std² and its correlation with
+/// a_b is ab_std² R_WR.
+Eigen::Matrix<double, 18, 18> prior_covariance(double v_std, double ab_std, double wb_std, double g_std,
+                                               const Eigen::Matrix3d& R_WR);
 
 /// The in-motion prior of [v a_b ω_b g] (tangent 18 × 18, zero on the pose rows): velocity_std_motion,
 /// accel_bias_std, gyro_bias_std, gravity_std_motion with g's correlation to a_b through R_WR. For starts in motion

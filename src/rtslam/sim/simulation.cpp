@@ -444,6 +444,15 @@ class SimSource final : public io::Source {
   std::optional<std::size_t> image_count() const override {
     return sim_->image_times().size() * static_cast<std::size_t>(sim_->camera_count());
   }
+  // Skips without rendering.
+  bool seek(TimeNs t) override {
+    const auto& imu = sim_->imu_samples();
+    const auto& img = sim_->image_times();
+    while (imu_pos_ < imu.size() && imu[imu_pos_].t < t) ++imu_pos_;
+    while (img_pos_ < img.size() && img[img_pos_] < t) ++img_pos_;
+    cam_ = 0;
+    return true;
+  }
 
  private:
   std::shared_ptr<const Simulation> sim_;

@@ -58,8 +58,10 @@ void Robot::attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::M
   for (auto& s : sensors_) s->attach(*this, map.take_sensor_id());
 }
 
-void Robot::reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov) {
+void Robot::reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t) {
   RTSLAM_CHECK(map_ != nullptr, "reset: robot not in a map");
+  RTSLAM_CHECK(t >= time_, "reset: a robot cannot go back in time");
+  time_ = t;
   map_->state().remove_block(block_);
   allocate_block(mean, cov);
   fej_valid_ = false;

@@ -49,10 +49,10 @@ class Robot {
   /// Called by Map::add_robot: allocates the block with the given prior (gauge: the first robot's pose defines
   /// the world frame, so its pose rows may have zero covariance).
   void attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0);
-  /// Re-initializes the robot in its map at its current time: its block is freed and allocated again with this
-  /// prior (no cross-covariance with what remains of the map). The health monitor's recovery: the caller removes
-  /// the landmarks first. Sensors and buffered data (IMU samples) are kept.
-  void reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov);
+  /// Re-initializes the robot in its map at time t (not before its current time): its block is freed and allocated
+  /// again with this prior (no cross-covariance with what remains of the map). The health monitor's recovery: the
+  /// caller removes the landmarks first. Sensors and buffered data (IMU samples) are kept.
+  void reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t);
 
   /// First-estimate Jacobians (FEJ: Huang, Mourikis, Roumeliotis 2008): the transition of a prediction from t_k is
   /// evaluated along the states predicted from the robot's FIRST estimate at t_k (its prediction to t_k, before

@@ -13,6 +13,9 @@ void AhpPrior::validate() const {
   if (!(std::isfinite(d_min) && d_min > 0.0)) {
     throw ConfigError(fmt::format("AHP prior: d_min = {} must be finite and > 0 (metres)", d_min));
   }
+  if (!(sigma_ratio > 0.0 && sigma_ratio <= 5.0)) {
+    throw ConfigError(fmt::format("AHP prior: depth_prior_sigma_ratio = {} must be in (0, 5]", sigma_ratio));
+  }
 }
 
 Vector7d ahp_from_ray(const math::Pose& T_WS, const Eigen::Vector3d& ray_S, double rho,

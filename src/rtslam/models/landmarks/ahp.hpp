@@ -16,9 +16,10 @@ using Vector7d = Eigen::Matrix<double, 7, 1>;
 /// Inverse-distance prior for undelayed initialization: ρ ~ N(1/(2 d_min), (1/(4 d_min))²), so that ±2σ spans
 /// depths [d_min, ∞) (RT-SLAM D_MIN = 0.5 m).
 struct AhpPrior {
-  double d_min = 0.5;  // m
+  double d_min = 0.5;         // m
+  double sigma_ratio = 0.5;   // σ_ρ / ρ̄ (RT-SLAM: 0.5, ±2σ spanning [d_min, ∞))
   double rho_mean() const { return 1.0 / (2.0 * d_min); }
-  double rho_sigma() const { return 1.0 / (4.0 * d_min); }
+  double rho_sigma() const { return sigma_ratio * rho_mean(); }
   /// Throws ConfigError unless d_min is finite and > 0.
   void validate() const;
 };

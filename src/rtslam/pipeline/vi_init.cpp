@@ -1,0 +1,525 @@
+#include "rtslam/pipeline/vi_init.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include <fmt/format.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/vision/harris.hpp"
+#include "rtslam/vision/zncc.hpp"
+
+namespace rtslam::pipeline {
+
+using Eigen::Matrix3d;
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+std::string ViInitResult::describe() const {
+  switch (kind) {
+    case Kind::Standstill:
+      return fmt::format("visual standstill ({} features moved {:.2f} px over {} images)", features, disparity_px,
+                         frames);
+    case Kind::Dynamic:
+      return fmt::format(
+          "visual-inertial start in motion ({} features over {} images, parallax {:.1f} px, "
+          "reprojection {:.2f} px): |v0| = {:.3f} m/s, scene depth {:.2f} m",
+          features, frames, parallax_px, reprojection_px, v0_R.norm(), median_depth_m);
+    case Kind::Failed:
+      break;
+  }
+  return "visual-inertial start failed: " + reason;
+}
+
+namespace {
+
+// Preintegrated IMU from t_0 to a frame time: R_{R0 Ri}, velocity and position increments without gravity and the
+// initial velocity (specific force only).
+struct Preint {
+  Matrix3d dR = Matrix3d::Identity();
+  Vector3d beta = Vector3d::Zero();
+  Vector3d alpha = Vector3d::Zero();
+  double dt = 0.0;
+};
+
+models::ImuMeasurement lerp(const ImuWindowSample& a, const ImuWindowSample& b, TimeNs t) {
+  if (b.t == a.t) return a.m;
+  const double s = static_cast<double>(t - a.t) / static_cast<double>(b.t - a.t);
+  return {a.m.accel + s * (b.m.accel - a.m.accel), a.m.gyro + s * (b.m.gyro - a.m.gyro)};
+}
+
+// Midpoint integration over [t0, times.back()] with the gyro bias removed, recorded at each time. False if the IMU
+// does not cover the span.
+bool preintegrate(const std::vector<ImuWindowSample>& imu, TimeNs t0, const std::vector<TimeNs>& times,
+                  const Vector3d& gyro_bias, std::vector<Preint>& out) {
+  out.assign(times.size(), Preint{});
+  if (imu.size() < 2 || imu.front().t > t0 || imu.back().t < times.back()) return false;
+  std::size_t k = 0;
+  while (k + 1 < imu.size() && imu[k + 1].t <= t0) ++k;
+  Preint p;
+  TimeNs t = t0;
+  std::size_t next_frame = 0;
+  while (next_frame < times.size() && times[next_frame] <= t0) out[next_frame++] = p;
+  while (next_frame < times.size()) {
+    while (k + 1 < imu.size() && imu[k + 1].t <= t) ++k;
+    if (k + 1 >= imu.size()) return false;
+    const TimeNs t1 = std::min(imu[k + 1].t, times[next_frame]);
+    const models::ImuMeasurement m0 = lerp(imu[k], imu[k + 1], t);
+    const models::ImuMeasurement m1 = lerp(imu[k], imu[k + 1], t1);
+    const double dt = to_seconds(t1 - t);
+    const Vector3d w = 0.5 * (m0.gyro + m1.gyro) - gyro_bias;
+    const Matrix3d R1 = p.dR * math::exp_so3(w * dt).toRotationMatrix();
+    const Vector3d a = 0.5 * (p.dR * m0.accel + R1 * m1.accel);
+    p.alpha += p.beta * dt + 0.5 * a * dt * dt;
+    p.beta += a * dt;
+    p.dR = R1;
+    p.dt += dt;
+    t = t1;
+    while (next_frame < times.size() && times[next_frame] <= t) out[next_frame++] = p;
+  }
+  return true;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+vision::ImageView view_of(const cv::Mat& m) {
+  return vision::ImageView{m.data, m.cols, m.rows, static_cast<int>(m.step[0])};
+}
+
+}  // namespace
+
+ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, const std::vector<ImuWindowSample>& imu,
+                                        const models::PinholeCamera& camera, const math::Pose& T_RS,
+                                        const ViInitOptions& o) {
+  ViInitResult res;
+  res.frames = static_cast<int>(frames.size());
+  if (static_cast<int>(frames.size()) < o.min_frames) {
+    res.reason = fmt::format("{} images in the window, need {}", frames.size(), o.min_frames);
+    return res;
+  }
+  const TimeNs t0 = frames.front().t;
+  std::vector<TimeNs> times;
+  for (const auto& f : frames) times.push_back(f.t);
+  std::vector<Preint> pre;
+  if (!preintegrate(imu, t0, times, Vector3d::Zero(), pre)) {
+    res.reason = "the IMU does not cover the window";
+    return res;
+  }
+  const Matrix3d R_RS = T_RS.q.toRotationMatrix();
+  const Matrix3d R_SR = R_RS.transpose();
+  const Vector3d t_SR = -R_SR * T_RS.p;
+
+  // 1. Features in the first image, tracked image to image.
+  const models::CameraIntrinsics& in = camera.intrinsics();
+  const int half = o.patch_size / 2;
+  vision::HarrisDetector harris;
+  vision::ZnccOptions zo;
+  zo.patch_size = o.patch_size;
+  zo.threshold = o.min_score;
+  vision::ZnccMatcher matcher(zo);
+  struct Track {
+    std::vector<Vector2d> px;
+    vision::Patch patch;
+    bool alive = true;
+  };
+  std::vector<Track> tracks;
+  const vision::ImageView first_view = view_of(frames.front().image);
+  const int border = half + 2;
+  for (int cy = 0; cy < o.cells_y; ++cy) {
+    for (int cx = 0; cx < o.cells_x; ++cx) {
+      const int x0 = border + (in.width - 2 * border) * cx / o.cells_x;
+      const int x1 = border + (in.width - 2 * border) * (cx + 1) / o.cells_x;
+      const int y0 = border + (in.height - 2 * border) * cy / o.cells_y;
+      const int y1 = border + (in.height - 2 * border) * (cy + 1) / o.cells_y;
+      const auto c = harris.best_corner(first_view, vision::Roi{x0, y0, x1 - x0, y1 - y0});
+      if (!c) continue;
+      Track t;
+      if (!t.patch.extract(first_view, c->u_px, c->v_px, o.patch_size) || t.patch.centred_energy() <= 0) continue;
+      t.px.emplace_back(c->u_px, c->v_px);
+      tracks.push_back(std::move(t));
+    }
+  }
+  for (std::size_t i = 1; i < frames.size(); ++i) {
+    const vision::ImageView vi = view_of(frames[i].image);
+    // Rotation of camera i-1 into camera i from the gyro: R_{Ci C(i-1)} = R_SR ΔR_iᵀ ΔR_{i-1} R_RS.
+    const Matrix3d R_ci_cp = R_SR * pre[i].dR.transpose() * pre[i - 1].dR * R_RS;
+    for (Track& t : tracks) {
+      if (!t.alive) continue;
+      Vector3d ray;
+      Vector2d pred;
+      if (!camera.unproject(t.px.back(), ray) || !camera.project(R_ci_cp * ray, pred) || !camera.in_image(pred, half)) {
+        t.alive = false;
+        continue;
+      }
+      const vision::MatchResult m =
+          matcher.match(t.patch, vi, vision::SearchEllipse::box(pred, o.search_px, o.search_px));
+      if (!m.found || !t.patch.extract(vi, m.u_px, m.v_px, o.patch_size) || t.patch.centred_energy() <= 0) {
+        t.alive = false;
+        continue;
+      }
+      t.px.emplace_back(m.u, m.v);
+    }
+  }
+  std::erase_if(tracks, [](const Track& t) { return !t.alive; });
+  res.features = static_cast<int>(tracks.size());
+  if (res.features < o.min_features) {
+    res.reason = fmt::format("{} features tracked through the window, need {}", res.features, o.min_features);
+    return res;
+  }
+  // Disparity (raw) and parallax (rotation removed) between the first and the last image.
+  const std::size_t last = frames.size() - 1;
+  const Matrix3d R_cl_c0 = R_SR * pre[last].dR.transpose() * R_RS;
+  std::vector<double> disp, para;
+  for (const Track& t : tracks) {
+    disp.push_back((t.px.back() - t.px.front()).norm());
+    Vector3d ray;
+    Vector2d derot;
+    if (camera.unproject(t.px.front(), ray) && camera.project(R_cl_c0 * ray, derot)) {
+      para.push_back((t.px.back() - derot).norm());
+    }
+  }
+  res.disparity_px = median(disp);
+  res.parallax_px = median(para);
+
+  // 2. At rest: the images say so, whatever the IMU's vibration.
+  if (res.disparity_px < o.standstill_max_disparity_px) {
+    Vector3d mw = Vector3d::Zero(), ma = Vector3d::Zero();
+    int n = 0;
+    for (const auto& s : imu) {
+      if (s.t < t0 || s.t > times.back()) continue;
+      mw += s.m.gyro;
+      ma += s.m.accel;
+      ++n;
+    }
+    if (n < 2) {
+      res.reason = "no IMU sample in the window";
+      return res;
+    }
+    res.kind = ViInitResult::Kind::Standstill;
+    res.gyro_bias = mw / n;
+    res.g_R = -ma / n;
+    return res;
+  }
+  if (res.parallax_px < o.min_parallax_px) {
+    res.reason = fmt::format("median parallax {:.1f} px below {:.1f} px (rotation without enough translation)",
+                             res.parallax_px, o.min_parallax_px);
+    res.needs_longer_window = true;
+    return res;
+  }
+
+  // 3. Linear least squares: features eliminated, g on the sphere, then v0 and the features. Features whose
+  // reprojection error stands out (tracking slips) are dropped and the problem solved again.
+  // One observation: rows A p_f + B θ = c with A = [b]× R_SR ΔR_iᵀ, B = [−A t_i, −½ A t_i²], c = A α_i − [b]× t_SR.
+  const auto rows = [&](const Track& t, std::size_t i, Matrix3d& A, Eigen::Matrix<double, 3, 6>& B, Vector3d& c) {
+    Vector3d ray;
+    if (!camera.unproject(t.px[i], ray)) return false;
+    const Matrix3d bx = math::skew(ray.normalized());
+    A = bx * R_SR * pre[i].dR.transpose();
+    const double dt = pre[i].dt;
+    B.leftCols<3>() = -A * dt;
+    B.rightCols<3>() = -0.5 * A * dt * dt;
+    c = A * pre[i].alpha - bx * t_SR;
+    return true;
+  };
+  struct Solution {
+    bool ok = false;
+    std::string reason;
+    Vector3d v0 = Vector3d::Zero(), g = Vector3d::Zero();
+    Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Zero();
+    double sse_rows = 0.0;
+    int n_rows = 0;
+    std::vector<double> rms_px;  // per feature of the subset
+    std::vector<double> depth;   // per feature: distance from camera 0 (NaN behind a camera)
+    Eigen::VectorXd residual;    // the stacked rows A p_f + B θ − c (weighted)
+    std::vector<double> range;   // per (feature, image): distance of the feature from the camera (NaN: none)
+  };
+  const std::size_t n_frames = frames.size();
+  // weights (optional, per (feature, image)): 1 / the feature's distance, so that the rows measure angles, not
+  // angles times distances (the unweighted problem favours shrinking the scene).
+  const auto solve = [&](const std::vector<int>& subset, std::size_t i_begin, std::size_t i_end,
+                         const std::vector<double>* weights) {
+    Solution sol;
+    const auto weight = [&](std::size_t j, std::size_t i) {
+      if (weights == nullptr) return 1.0;
+      const double w = (*weights)[j * n_frames + i];
+      return std::isfinite(w) && w > 0.0 ? w : 1.0;
+    };
+    struct FeatureBlocks {
+      Matrix3d U = Matrix3d::Zero();
+      Eigen::Matrix<double, 3, 6> W = Eigen::Matrix<double, 3, 6>::Zero();
+      Vector3d a = Vector3d::Zero();
+    };
+    std::vector<FeatureBlocks> fb(subset.size());
+    Eigen::Matrix<double, 6, 6> V = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    for (std::size_t j = 0; j < subset.size(); ++j) {
+      const Track& t = tracks[static_cast<std::size_t>(subset[j])];
+      for (std::size_t i = i_begin; i < std::min(i_end, t.px.size()); ++i) {
+        Matrix3d A;
+        Eigen::Matrix<double, 3, 6> B;
+        Vector3d c;
+        if (!rows(t, i, A, B, c)) continue;
+        const double w = weight(j, i);
+        A *= w;
+        B *= w;
+        c *= w;
+        fb[j].U += A.transpose() * A;
+        fb[j].W += A.transpose() * B;
+        fb[j].a += A.transpose() * c;
+        V += B.transpose() * B;
+        b += B.transpose() * c;
+        sol.n_rows += 2;  // [b]× has rank 2
+      }
+    }
+    Eigen::Matrix<double, 6, 6> S = V;
+    Eigen::Matrix<double, 6, 1> s = b;
+    for (const auto& f : fb) {
+      const Eigen::LDLT<Matrix3d> U(f.U);
+      if (U.info() != Eigen::Success || !(U.vectorD().minCoeff() > 1e-12)) continue;
+      S -= f.W.transpose() * U.solve(f.W);
+      s -= f.W.transpose() * U.solve(f.a);
+    }
+    const Matrix3d Svv = S.topLeftCorner<3, 3>(), Svg = S.topRightCorner<3, 3>(), Sgg = S.bottomRightCorner<3, 3>();
+    const Eigen::LDLT<Matrix3d> Lvv(Svv);
+    const Matrix3d M = Sgg - Svg.transpose() * Lvv.solve(Svg);
+    const Vector3d e = s.tail<3>() - Svg.transpose() * Lvv.solve(s.head<3>());
+    // g on the sphere: (M + λI) g = e with |g| = gravity, λ > −σ_min (trust-region subproblem, bisection on λ).
+    const Eigen::SelfAdjointEigenSolver<Matrix3d> es(0.5 * (M + M.transpose()));
+    const Vector3d sig = es.eigenvalues();
+    const Vector3d ue = es.eigenvectors().transpose() * e;
+    const auto g_of = [&](double lambda) {
+      Vector3d c;
+      for (int k = 0; k < 3; ++k) c[k] = ue[k] / (sig[k] + lambda);
+      return Vector3d(es.eigenvectors() * c);
+    };
+    double lo = -sig[0] + 1e-12 * std::max(1.0, std::abs(sig[0])), hi = e.norm() / o.gravity + std::abs(sig[0]) + 1.0;
+    for (int it = 0; it < 200; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (g_of(mid).norm() > o.gravity ? lo : hi) = mid;
+    }
+    sol.g = g_of(0.5 * (lo + hi)).normalized() * o.gravity;
+    sol.v0 = Lvv.solve(s.head<3>() - Svg * sol.g);
+    sol.S = S;
+    if (!sol.g.allFinite() || !sol.v0.allFinite()) {
+      sol.reason = "the linear system is degenerate";
+      return sol;
+    }
+    Eigen::Matrix<double, 6, 1> theta;
+    theta << sol.v0, sol.g;
+    sol.residual.setZero(3 * static_cast<Eigen::Index>(subset.size() * n_frames));
+    sol.range.assign(subset.size() * n_frames, std::numeric_limits<double>::quiet_NaN());
+    Eigen::Index rr = 0;
+    for (std::size_t j = 0; j < subset.size(); ++j) {
+      const Track& t = tracks[static_cast<std::size_t>(subset[j])];
+      const Vector3d p_f = Eigen::LDLT<Matrix3d>(fb[j].U).solve(fb[j].a - fb[j].W * theta);
+      double sse = 0.0;
+      int n = 0;
+      double depth = std::numeric_limits<double>::quiet_NaN();
+      bool front = true;
+      for (std::size_t i = i_begin; i < std::min(i_end, t.px.size()); ++i) {
+        const double dt = pre[i].dt;
+        const Vector3d p_C =
+            R_SR * (pre[i].dR.transpose() * (p_f - sol.v0 * dt - 0.5 * sol.g * dt * dt - pre[i].alpha)) + t_SR;
+        Matrix3d A;
+        Eigen::Matrix<double, 3, 6> B;
+        Vector3d c;
+        if (rows(t, i, A, B, c)) {
+          const Vector3d r = weight(j, i) * (A * p_f + B * theta - c);
+          sol.sse_rows += r.squaredNorm();
+          sol.residual.segment<3>(rr) = r;
+        }
+        rr += 3;
+        Vector2d z;
+        if (!(p_C.z() > 0.0) || !camera.project(p_C, z)) {
+          front = false;
+          continue;
+        }
+        sol.range[j * n_frames + i] = p_C.norm();
+        sse += (z - t.px[i]).squaredNorm();
+        ++n;
+        if (i == i_begin) depth = p_C.norm();
+      }
+      sol.rms_px.push_back(front && n > 0 ? std::sqrt(sse / n) : std::numeric_limits<double>::infinity());
+      sol.depth.push_back(front ? depth : std::numeric_limits<double>::quiet_NaN());
+    }
+    sol.ok = true;
+    return sol;
+  };
+  // Reweighted: solved once unweighted, then twice with the weights of the previous solution's distances.
+  const auto solve_irls = [&](const std::vector<int>& subset, std::size_t i_begin, std::size_t i_end) {
+    Solution sol = solve(subset, i_begin, i_end, nullptr);
+    std::vector<double> w;
+    for (int round = 0; round < 2 && sol.ok; ++round) {
+      w.assign(sol.range.size(), 0.0);
+      for (std::size_t k = 0; k < w.size(); ++k) {
+        w[k] = std::isfinite(sol.range[k]) ? 1.0 / std::clamp(sol.range[k], 0.1, 100.0) : 0.0;
+      }
+      sol = solve(subset, i_begin, i_end, &w);
+    }
+    return sol;
+  };
+  std::vector<int> subset(static_cast<std::size_t>(res.features));
+  for (int f = 0; f < res.features; ++f) subset[static_cast<std::size_t>(f)] = f;
+  // The gyro bias: real IMUs carry several deg/s (EuRoC's ADIS16448: 0.08 rad/s about one axis), which bends every
+  // derotated bearing of the window. Gauss-Newton on the three bias components (numerical Jacobians) of the stacked
+  // algebraic residuals, the linear problem solved anew inside (variable projection).
+  Vector3d b_g = Vector3d::Zero();
+  {
+    const auto residual_at = [&](const Vector3d& b) -> std::optional<Eigen::VectorXd> {
+      if (!preintegrate(imu, t0, times, b, pre)) return std::nullopt;
+      Solution sl = solve_irls(subset, 0, frames.size());
+      if (!sl.ok) return std::nullopt;
+      return sl.residual;
+    };
+    for (int it = 0; it < 8; ++it) {
+      const auto r0 = residual_at(b_g);
+      if (!r0) break;
+      Eigen::Matrix<double, Eigen::Dynamic, 3> J(r0->size(), 3);
+      bool ok = true;
+      for (int k = 0; k < 3; ++k) {
+        const double h = 1e-4;
+        const auto rk = residual_at(b_g + h * Vector3d::Unit(k));
+        if (!rk) {
+          ok = false;
+          break;
+        }
+        J.col(k) = (*rk - *r0) / h;
+      }
+      if (!ok) break;
+      const Eigen::Matrix3d JtJ = J.transpose() * J;
+      const Vector3d step = -JtJ.ldlt().solve(J.transpose() * *r0);
+      if (!step.allFinite()) break;
+      // Accept the step only if it lowers the cost (halving it otherwise).
+      double scale = 1.0;
+      bool better = false;
+      for (int h = 0; h < 6 && !better; ++h, scale *= 0.5) {
+        const auto r1 = residual_at(b_g + scale * step);
+        if (r1 && r1->squaredNorm() < r0->squaredNorm()) {
+          b_g += scale * step;
+          better = true;
+        }
+      }
+      if (!better || (scale * step).norm() < 1e-6) break;
+    }
+    if (!(b_g.norm() < 1.0)) b_g.setZero();  // rad/s: implausible, keep none
+    preintegrate(imu, t0, times, b_g, pre);
+  }
+  res.gyro_bias = b_g;
+  Solution sol;
+  for (int round = 0; round < 4; ++round) {
+    sol = solve_irls(subset, 0, frames.size());
+    if (!sol.ok) {
+      res.reason = sol.reason;
+      return res;
+    }
+    const double bound = std::max(3.0 * median(sol.rms_px), 0.5 * o.max_reprojection_px);
+    std::vector<int> kept;
+    for (std::size_t j = 0; j < subset.size(); ++j)
+      if (sol.rms_px[j] <= bound) kept.push_back(subset[j]);
+    if (kept.size() == subset.size()) break;
+    if (static_cast<int>(kept.size()) < o.min_features) {
+      res.reason = fmt::format("{} of {} features consistent with one motion, need {}", kept.size(), subset.size(),
+                               o.min_features);
+      return res;
+    }
+    subset = std::move(kept);
+  }
+  res.features = static_cast<int>(subset.size());
+  const Vector3d v0 = sol.v0, g = sol.g;
+  // The scale comes from the accelerations: their displacement over the window, |α_i + ½ g t_i²| (R_0), must stand
+  // out of the tracking noise and the unmodelled accelerometer bias (½ b t² is 8 mm over 0.4 s for 0.1 m/s²).
+  double excitation = 0.0;
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    excitation = std::max(excitation, (pre[i].alpha + 0.5 * g * pre[i].dt * pre[i].dt).norm());
+  res.excitation_m = excitation;
+  if (excitation < o.min_excitation_m) {
+    res.reason = fmt::format(
+        "acceleration displaces the body by {:.3f} m over the window, below {:.3f} m (scale "
+        "not observable yet)",
+        excitation, o.min_excitation_m);
+    res.needs_longer_window = true;
+    return res;
+  }
+  if (v0.norm() > o.max_speed) {
+    res.reason = fmt::format("|v0| = {:.1f} m/s above max_speed", v0.norm());
+    return res;
+  }
+  double sse_px = 0.0;
+  int n_px = 0;
+  std::vector<double> depths;
+  for (std::size_t j = 0; j < subset.size(); ++j) {
+    if (!std::isfinite(sol.rms_px[j])) continue;
+    sse_px += sol.rms_px[j] * sol.rms_px[j];
+    ++n_px;
+    if (std::isfinite(sol.depth[j])) depths.push_back(sol.depth[j]);
+  }
+  res.reprojection_px = n_px > 0 ? std::sqrt(sse_px / n_px) : 0.0;
+  // Self-consistency: the first and the last two thirds of the window, solved apart for the same unknowns (v0 and g
+  // at the first image, in R_0), must agree. A window whose tracks drift consistently (fast rotation) can fit one
+  // wrong motion to a pixel; its parts then disagree.
+  const std::size_t n = frames.size();
+  const Solution early = solve_irls(subset, 0, (2 * n + 2) / 3), late = solve_irls(subset, n / 3, n);
+  if (!early.ok || !late.ok) {
+    res.reason = "a part of the window is degenerate";
+    return res;
+  }
+  const double g_angle = std::acos(std::clamp(early.g.normalized().dot(late.g.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+  const double dv = (early.v0 - late.v0).norm();
+  if (g_angle > o.max_split_gravity_deg || dv > 0.05 + o.max_split_velocity_ratio * v0.norm()) {
+    res.reason =
+        fmt::format("the window's parts disagree (gravity {:.1f} deg, velocity {:.2f} m/s apart)", g_angle, dv);
+    return res;
+  }
+  if (n_px < std::max(o.min_features, (3 * static_cast<int>(subset.size())) / 4)) {
+    res.reason = fmt::format("only {} of {} features in front of the cameras", n_px, subset.size());
+    return res;
+  }
+  if (!(res.reprojection_px <= o.max_reprojection_px)) {
+    res.reason = fmt::format("reprojection RMS {:.2f} px above {:.2f} px", res.reprojection_px, o.max_reprojection_px);
+    return res;
+  }
+  res.kind = ViInitResult::Kind::Dynamic;
+  res.v0_R = v0;
+  res.g_R = g;
+  res.median_depth_m = median(depths);
+  // Least-squares covariance of [v0 g]: σ² S⁻¹ with σ² the residual variance per row.
+  const double dof = std::max(1, sol.n_rows - 3 * res.features - 6);
+  res.cov_v_g = (sol.sse_rows / dof) * sol.S.ldlt().solve(Eigen::Matrix<double, 6, 6>::Identity());
+  return res;
+}
+
+InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialOptions& o) {
+  RTSLAM_CHECK(r.kind != ViInitResult::Kind::Failed, "inertial_start_from_vi: the start failed");
+  using I = models::InertialIndex;
+  InertialStart s;
+  s.standstill = r.kind == ViInitResult::Kind::Standstill;
+  const Eigen::Quaterniond q_WR = gravity_aligned_attitude(-r.g_R);
+  const Matrix3d R = q_WR.toRotationMatrix();
+  s.x.segment<4>(I::kQ) = math::quat_to_wxyz(q_WR);
+  s.x.segment<3>(I::kG) = R * r.g_R;
+  if (s.standstill) {
+    s.x.segment<3>(I::kWb) = r.gyro_bias;
+    s.P = prior_covariance(o.velocity_std_standstill, o.accel_bias_std, 1e-3, o.gravity_std_standstill, R);
+    return s;
+  }
+  s.x.segment<3>(I::kV) = R * r.v0_R;
+  s.x.segment<3>(I::kWb) = r.gyro_bias;
+  const Eigen::SelfAdjointEigenSolver<Matrix3d> ev(r.cov_v_g.topLeftCorner<3, 3>());
+  const Eigen::SelfAdjointEigenSolver<Matrix3d> eg(r.cov_v_g.bottomRightCorner<3, 3>());
+  const double v_std = std::max(0.05, 3.0 * std::sqrt(std::max(0.0, ev.eigenvalues().maxCoeff())));
+  const double g_std = std::max(0.1, 3.0 * std::sqrt(std::max(0.0, eg.eigenvalues().maxCoeff())));
+  s.P = prior_covariance(std::min(v_std, o.velocity_std_motion), o.accel_bias_std, o.gyro_bias_std,
+                         std::min(g_std, o.gravity_std_motion), R);
+  return s;
+}
+
+}  // namespace rtslam::pipeline

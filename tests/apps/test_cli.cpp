@@ -50,7 +50,7 @@ int count_lines(const std::string& s) {
 }
 
 TEST(Cli, EverySubcommandHasHelp) {
-  for (const char* sub : {"run", "simulate", "eval", "batch", "report", "bench"}) {
+  for (const char* sub : {"run", "simulate", "eval", "batch", "report", "bench", "imu-noise"}) {
     const Result r = run(std::string(sub) + " --help");
     EXPECT_EQ(r.code, 0) << sub << ": " << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub;
@@ -129,6 +129,40 @@ TEST(Cli, DumpConfigPrintsTheEffectiveConfiguration) {
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("seed: 9"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("d_min"), std::string::npos);
+}
+
+TEST(Cli, ImuNoiseWithoutGroundTruthIsOneLineNamingTheStateFile) {
+  const fs::path d = temp_dir("imu_noise_nogt");
+  fs::create_directories(d / "mav0" / "imu0");
+  std::ofstream(d / "mav0" / "imu0" / "data.csv") << "#t,wx,wy,wz,ax,ay,az\n0,0,0,0,0,0,9.81\n";
+  const Result r = run("imu-noise --dataset euroc:" + d.string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find("state_groundtruth_estimate0/data.csv"), std::string::npos) << r.out;
+  EXPECT_EQ(count_lines(r.out), 1) << r.out;
+  const Result missing = run("imu-noise --dataset euroc:" + (d / "absent").string());
+  EXPECT_NE(missing.code, 0);
+  EXPECT_EQ(count_lines(missing.out), 1) << missing.out;
+  const Result bad = run("imu-noise --dataset euroc:" + d.string() + " --windows 0.05,-1");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("window"), std::string::npos) << bad.out;
+}
+
+TEST(Cli, ImuNoiseOnTheRecordedV101FlightGivesThePresetsDensities) {
+  const fs::path data = "../shared/datasets/euroc-v101-static";
+  if (!fs::is_directory(data)) GTEST_SKIP() << data << " not found (../shared/datasets/README.md)";
+  const fs::path d = temp_dir("imu_noise_v101");
+  const Result r = run("imu-noise --dataset euroc:" + data.string() + " --json " + (d / "noise.json").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("in flight"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("accelerometer_noise_density:"), std::string::npos) << r.out;
+  // config/euroc_mono_imu.yaml: accelerometer 7.0e-3 m/s²/√Hz, gyroscope 3.4e-4 rad/s/√Hz (50 ms, in flight).
+  const std::string j = read_file(d / "noise.json");
+  const auto number_after = [&](const std::string& key) {
+    const auto k = j.find("\"" + key + "\"");
+    return k == std::string::npos ? 0.0 : std::stod(j.substr(j.find(':', k) + 1));
+  };
+  EXPECT_NEAR(number_after("accelerometer_noise_density") / 7.0e-3, 1.0, 0.1) << j;
+  EXPECT_NEAR(number_after("gyroscope_noise_density") / 3.4e-4, 1.0, 0.1) << j;
 }
 
 }  // namespace

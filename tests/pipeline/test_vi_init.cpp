@@ -74,3 +74,34 @@ TEST(ViInit, AtRestIsAStandstill) {
 
 }  // namespace
 }  // namespace rtslam::pipeline
+
+namespace rtslam::pipeline {
+namespace {
+
+// The start's prior fused with |g| = 9.81 ± 0.03: closed form of one scalar Kalman update. The accelerometer bias
+// along the vertical is correlated with gravity in the prior (g = −R (f − a_b)), so it takes the difference.
+TEST(InertialStart, GravityMagnitudeIsKnown) {
+  using I = models::InertialIndex;
+  InertialOptions o;
+  InertialStart s;
+  const Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  s.x.segment<3>(I::kG) = Eigen::Vector3d(0.0, 0.0, -9.90);
+  s.P = prior_covariance(1.0, o.accel_bias_std, o.gyro_bias_std, o.gravity_std_motion, R);
+  const double before_gz = s.P(I::kDg + 2, I::kDg + 2), before_ab = s.P(I::kDab + 2, I::kDab + 2);
+  constrain_gravity_magnitude(s, o);
+  const double S = before_gz + o.gravity_magnitude_std * o.gravity_magnitude_std;
+  // Along g = −z: the innovation is 9.81 − 9.90 = −0.09, the gain before_gz / S.
+  EXPECT_NEAR(s.x[I::kG + 2], -9.90 + (before_gz / S) * 0.09, 1e-12);
+  EXPECT_NEAR(s.P(I::kDg + 2, I::kDg + 2), before_gz * (1.0 - before_gz / S), 1e-12);
+  // The horizontal components (the tilt) keep their prior.
+  EXPECT_NEAR(s.P(I::kDg, I::kDg), before_gz, 1e-12);
+  // The vertical bias, correlated with g_z by ab² R, moves by its gain and loses variance.
+  const double k_ab = o.accel_bias_std * o.accel_bias_std / S;
+  EXPECT_NEAR(s.x[I::kAb + 2], k_ab * 0.09, 1e-12);  // |g| = f_z − a_b,z: a smaller |g| is a larger bias
+  EXPECT_LT(s.P(I::kDab + 2, I::kDab + 2), before_ab);
+  // |g| is now within the constraint's std.
+  EXPECT_NEAR(s.x.segment<3>(I::kG).norm(), 9.81, 2.0 * o.gravity_magnitude_std);
+}
+
+}  // namespace
+}  // namespace rtslam::pipeline

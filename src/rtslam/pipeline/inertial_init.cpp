@@ -16,6 +16,8 @@ void InertialOptions::validate() const {
   if (init != "auto" && init != "standstill" && init != "motion") {
     throw ConfigError(fmt::format("imu/init = '{}' must be auto, standstill or motion", init));
   }
+  require_bound(gravity_magnitude >= 9.7 && gravity_magnitude <= 9.9, w, "gravity_magnitude", gravity_magnitude,
+                "in [9.7, 9.9] m/s² (Earth)");
   require_bound(init_window_s > 0.0 && init_window_s <= 10.0, w, "init_window", init_window_s, "in (0, 10] s");
   require_bound(standstill_max_gyro_std > 0.0, w, "standstill_max_gyro_std", standstill_max_gyro_std, "> 0");
   require_bound(standstill_max_accel_std > 0.0, w, "standstill_max_accel_std", standstill_max_accel_std, "> 0");
@@ -24,6 +26,7 @@ void InertialOptions::validate() const {
                                std::pair{"accel_bias_std", accel_bias_std}, std::pair{"gyro_bias_std", gyro_bias_std},
                                std::pair{"gravity_std_standstill", gravity_std_standstill},
                                std::pair{"gravity_std_motion", gravity_std_motion},
+                               std::pair{"gravity_magnitude_std", gravity_magnitude_std},
                                std::pair{"noise_scale", noise_scale},
                                std::pair{"random_walk_scale", random_walk_scale},
                                std::pair{"extrinsics_std_m", extrinsics_std_m},
@@ -130,12 +133,15 @@ void read_inertial(YamlMap m, InertialOptions& o) {
   m.get("gyro_bias_std", o.gyro_bias_std);
   m.get("gravity_std_standstill", o.gravity_std_standstill);
   m.get("gravity_std_motion", o.gravity_std_motion);
+  m.get("gravity_magnitude", o.gravity_magnitude);
+  m.get("gravity_magnitude_std", o.gravity_magnitude_std);
   m.get("noise_scale", o.noise_scale);
   m.get("random_walk_scale", o.random_walk_scale);
   m.get("estimate_extrinsics", o.estimate_extrinsics);
   m.get("extrinsics_std_m", o.extrinsics_std_m);
   m.get("extrinsics_std_deg", o.extrinsics_std_deg);
   if (m.has("vi_init")) read_vi_init(m.child("vi_init"), o.vi_init);
+  o.vi_init.accel_bias_std = o.accel_bias_std;  // the refinement's prior is the filter's
   double v = 0.0;
   if (m.has("time_offset")) { m.get("time_offset", v); o.time_offset_s = v; }
   if (m.has("accelerometer_noise_density")) { m.get("accelerometer_noise_density", v); o.accelerometer_noise_density = v; }
@@ -159,6 +165,8 @@ YAML::Node inertial_to_yaml(const InertialOptions& o) {
   n["gyro_bias_std"] = o.gyro_bias_std;
   n["gravity_std_standstill"] = o.gravity_std_standstill;
   n["gravity_std_motion"] = o.gravity_std_motion;
+  n["gravity_magnitude"] = o.gravity_magnitude;
+  n["gravity_magnitude_std"] = o.gravity_magnitude_std;
   n["noise_scale"] = o.noise_scale;
   n["random_walk_scale"] = o.random_walk_scale;
   n["estimate_extrinsics"] = o.estimate_extrinsics;
@@ -214,6 +222,24 @@ Eigen::Matrix<double, 18, 18> prior_covariance(double v_std, double ab_std, doub
   P.block<3, 3>(I::kDg, I::kDab) = ab_std * ab_std * R;
   P.block<3, 3>(I::kDab, I::kDg) = P.block<3, 3>(I::kDg, I::kDab).transpose();
   return P;
+}
+
+void constrain_gravity_magnitude(InertialStart& s, const InertialOptions& o) {
+  using I = InertialIndex;
+  const Eigen::Vector3d g = s.x.segment<3>(I::kG);
+  if (!(g.norm() > 0.0) || !(o.gravity_magnitude_std > 0.0)) return;
+  Eigen::Matrix<double, 1, 18> H = Eigen::Matrix<double, 1, 18>::Zero();
+  H.segment<3>(I::kDg) = g.normalized().transpose();
+  const double S = (H * s.P * H.transpose())(0, 0) + o.gravity_magnitude_std * o.gravity_magnitude_std;
+  const Eigen::Matrix<double, 18, 1> K = s.P * H.transpose() / S;
+  const Eigen::Matrix<double, 18, 1> dx = K * (o.gravity_magnitude - g.norm());
+  // p and q are the gauge (zero covariance, so zero gain); the other blocks are additive.
+  s.x.segment<3>(I::kV) += dx.segment<3>(I::kDv);
+  s.x.segment<3>(I::kAb) += dx.segment<3>(I::kDab);
+  s.x.segment<3>(I::kWb) += dx.segment<3>(I::kDwb);
+  s.x.segment<3>(I::kG) += dx.segment<3>(I::kDg);
+  s.P -= K * S * K.transpose();
+  s.P = 0.5 * (s.P + s.P.transpose());
 }
 
 Eigen::Matrix<double, 18, 18> motion_prior_covariance(const InertialOptions& o, const Eigen::Matrix3d& R_WR) {
@@ -290,6 +316,7 @@ InertialStart initialize_inertial(const std::vector<ImuWindowSample>& window, Ti
   const double wb_std = s.standstill ? std::max(1e-3, s.gyro_std / std::sqrt(static_cast<double>(n))) : o.gyro_bias_std;
   const double g_std = s.standstill ? o.gravity_std_standstill : o.gravity_std_motion;
   s.P = prior_covariance(v_std, o.accel_bias_std, wb_std, g_std, R);
+  constrain_gravity_magnitude(s, o);
   return s;
 }
 

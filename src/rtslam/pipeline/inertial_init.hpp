@@ -50,6 +50,7 @@ struct ViInitOptions {
   double max_speed = 20.0;                    // m/s: a larger v₀ is rejected
   double max_split_gravity_deg = 1.5;         // the window's first and last two thirds solved apart: gravity and
   double max_split_velocity_ratio = 0.1;      // velocity must agree within these (velocity: 0.05 m/s + ratio·|v₀|)
+  double accel_bias_std = 0.1;                // m/s², prior of the refinement (not a key: imu/accel_bias_std)
   void validate() const;
 };
 /// imu/vi_init: {enabled, window, min_frames, cells_x, cells_y, patch_size, min_score, search_px, min_features,
@@ -68,6 +69,9 @@ struct InertialOptions {
   double gyro_bias_std = 0.01;            // rad/s per axis (prior; standstill: the mean's spread, at least 1e-3)
   double gravity_std_standstill = 0.05;   // m/s² per axis, added to the accelerometer bias prior
   double gravity_std_motion = 1.0;        // m/s² per axis
+  double gravity_magnitude = 9.81;        // m/s², |g| where the robot runs (9.78 at the equator, 9.83 at the poles)
+  double gravity_magnitude_std = 0.03;    // m/s²: |g| is known; without it an accelerometer bias along the
+                                          // vertical trades against |g| and the filter scales its motion wrongly
   // The noise model: the calibration's densities (sensor.yaml / imu.yaml), each replaced by its key when given,
   // then multiplied by the scales.
   std::optional<double> accelerometer_noise_density;  // m/s²/√Hz
@@ -120,6 +124,9 @@ Eigen::Matrix<double, 18, 18> prior_covariance(double v_std, double ab_std, doub
 /// The in-motion prior of [v a_b ω_b g] (tangent 18 × 18, zero on the pose rows): velocity_std_motion,
 /// accel_bias_std, gyro_bias_std, gravity_std_motion with g's correlation to a_b through R_WR. For starts in motion
 /// and the health monitor's re-initializations.
+/// The start's prior (s.x, s.P) fused with the pseudo-measurement |g| = o.gravity_magnitude (std
+/// o.gravity_magnitude_std): one scalar Kalman update over the velocity, biases and gravity.
+void constrain_gravity_magnitude(InertialStart& s, const InertialOptions& o);
 Eigen::Matrix<double, 18, 18> motion_prior_covariance(const InertialOptions& o, const Eigen::Matrix3d& R_WR);
 
 /// The gravity-aligned attitude q_WR of a body whose mean specific force (in R) is f_R: R_WR f_R ∝ +z, W's x axis

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <optional>
 
@@ -27,8 +28,13 @@ std::string ViInitResult::describe() const {
     case Kind::Dynamic:
       return fmt::format(
           "visual-inertial start in motion ({} features over {} images, parallax {:.1f} px, "
-          "reprojection {:.2f} px): |v0| = {:.3f} m/s, scene depth {:.2f} m",
-          features, frames, parallax_px, reprojection_px, v0_R.norm(), median_depth_m);
+          "reprojection {:.2f} px, excitation {:.2f} m): |v0| = {:.3f} ± {:.3f} m/s, gravity ± {:.2f} deg, scene "
+          "depth {:.2f} m",
+          features, frames, parallax_px, reprojection_px, excitation_m, v0_R.norm(),
+          std::sqrt(std::max(0.0, cov_v_g.topLeftCorner<3, 3>().trace())),
+          std::sqrt(std::max(0.0, cov_v_g.bottomRightCorner<3, 3>().trace())) / std::max(1e-9, g_R.norm()) * 180.0 /
+              M_PI,
+          median_depth_m);
     case Kind::Failed:
       break;
   }
@@ -43,6 +49,8 @@ struct Preint {
   Matrix3d dR = Matrix3d::Identity();
   Vector3d beta = Vector3d::Zero();
   Vector3d alpha = Vector3d::Zero();
+  Matrix3d alpha_ba = Matrix3d::Zero();  // ∂alpha/∂(accelerometer bias)
+  Matrix3d beta_ba = Matrix3d::Zero();   // ∂beta/∂(accelerometer bias)
   double dt = 0.0;
 };
 
@@ -74,8 +82,11 @@ bool preintegrate(const std::vector<ImuWindowSample>& imu, TimeNs t0, const std:
     const Vector3d w = 0.5 * (m0.gyro + m1.gyro) - gyro_bias;
     const Matrix3d R1 = p.dR * math::exp_so3(w * dt).toRotationMatrix();
     const Vector3d a = 0.5 * (p.dR * m0.accel + R1 * m1.accel);
+    const Matrix3d R_mid = 0.5 * (p.dR + R1);  // a = R_mid (m - b_a) for a constant bias
     p.alpha += p.beta * dt + 0.5 * a * dt * dt;
     p.beta += a * dt;
+    p.alpha_ba += p.beta_ba * dt - 0.5 * R_mid * dt * dt;
+    p.beta_ba -= R_mid * dt;
     p.dR = R1;
     p.dt += dt;
     t = t1;
@@ -237,10 +248,11 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Zero();
     double sse_rows = 0.0;
     int n_rows = 0;
-    std::vector<double> rms_px;  // per feature of the subset
-    std::vector<double> depth;   // per feature: distance from camera 0 (NaN behind a camera)
-    Eigen::VectorXd residual;    // the stacked rows A p_f + B θ − c (weighted)
-    std::vector<double> range;   // per (feature, image): distance of the feature from the camera (NaN: none)
+    std::vector<double> rms_px;    // per feature of the subset
+    std::vector<double> depth;     // per feature: distance from camera 0 (NaN behind a camera)
+    Eigen::VectorXd residual;      // the stacked rows A p_f + B θ − c (weighted)
+    std::vector<double> range;     // per (feature, image): distance of the feature from the camera (NaN: none)
+    std::vector<Vector3d> points;  // per feature: position in R_0
   };
   const std::size_t n_frames = frames.size();
   // weights (optional, per (feature, image)): 1 / the feature's distance, so that the rows measure angles, not
@@ -321,6 +333,7 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     for (std::size_t j = 0; j < subset.size(); ++j) {
       const Track& t = tracks[static_cast<std::size_t>(subset[j])];
       const Vector3d p_f = Eigen::LDLT<Matrix3d>(fb[j].U).solve(fb[j].a - fb[j].W * theta);
+      sol.points.push_back(p_f);
       double sse = 0.0;
       int n = 0;
       double depth = std::numeric_limits<double>::quiet_NaN();
@@ -434,7 +447,153 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     subset = std::move(kept);
   }
   res.features = static_cast<int>(subset.size());
-  const Vector3d v0 = sol.v0, g = sol.g;
+  // 4. Maximum likelihood: the linear solution minimizes algebraic errors (cross products), which are not the
+  // pixel errors and bias the scale low on real tracks; it starts a robust Gauss-Newton on the reprojection errors
+  // over v0, gravity (on its sphere), the accelerometer bias (with its prior: over a short window it is nearly
+  // indistinguishable from a tilt) and the features (eliminated by Schur complement), as the refinement step
+  // of the OpenVINS and VINS-Mono initializers.
+  Vector3d v0 = sol.v0, g = sol.g, b_a = Vector3d::Zero();
+  {
+    using Mat8 = Eigen::Matrix<double, 8, 8>;
+    using Vec8 = Eigen::Matrix<double, 8, 1>;
+    std::vector<Vector3d> pts = sol.points;
+    const double huber = 1.5;                                             // px
+    const double prior_ba = 1.0 / (o.accel_bias_std * o.accel_bias_std);  // (m/s²)⁻², per axis
+    const auto tangent = [](const Vector3d& gv) {
+      Eigen::Matrix<double, 3, 2> T;
+      const Vector3d n = gv.normalized();
+      const Vector3d a = std::abs(n.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY();
+      T.col(0) = n.cross(a).normalized();
+      T.col(1) = n.cross(T.col(0));
+      return T;
+    };
+    // Pixel residual of feature j in image i and its Jacobians (false: behind the camera / outside the model).
+    const auto residual = [&](std::size_t j, std::size_t i, const Vector3d& pv, const Vector3d& vv, const Vector3d& gv,
+                              const Vector3d& bv, Vector2d& r, Eigen::Matrix<double, 2, 3>* Jp,
+                              Eigen::Matrix<double, 2, 8>* Jt) {
+      const Track& t = tracks[static_cast<std::size_t>(subset[j])];
+      if (i >= t.px.size()) return false;
+      const double dt = pre[i].dt;
+      const Matrix3d C = R_SR * pre[i].dR.transpose();
+      const Vector3d p_C = C * (pv - vv * dt - 0.5 * gv * dt * dt - pre[i].alpha + pre[i].alpha_ba * bv) + t_SR;
+      if (!(p_C.z() > 0.05)) return false;
+      Vector2d z;
+      Eigen::Matrix<double, 2, 3> J_pi;
+      if (!camera.project(p_C, z, &J_pi)) return false;
+      r = z - t.px[i];
+      if (Jp != nullptr) {
+        const Eigen::Matrix<double, 2, 3> JC = J_pi * C;
+        *Jp = JC;
+        Jt->leftCols<3>() = -dt * JC;
+        Jt->middleCols<2>(3) = -0.5 * dt * dt * o.gravity * JC * tangent(gv);
+        Jt->rightCols<3>() = JC * pre[i].alpha_ba;
+      }
+      return true;
+    };
+    const auto cost = [&](const std::vector<Vector3d>& pv, const Vector3d& vv, const Vector3d& gv, const Vector3d& bv) {
+      double c = prior_ba * bv.squaredNorm();
+      for (std::size_t j = 0; j < subset.size(); ++j)
+        for (std::size_t i = 0; i < frames.size(); ++i) {
+          Vector2d r;
+          if (!residual(j, i, pv[j], vv, gv, bv, r, nullptr, nullptr)) continue;
+          const double e = r.norm();
+          c += e <= huber ? e * e : huber * (2.0 * e - huber);
+        }
+      return c;
+    };
+    double c0 = cost(pts, v0, g, b_a);
+    double lambda = 1e-4;
+    Mat8 H_reduced = Mat8::Identity();
+    for (int it = 0; it < 15 && std::isfinite(c0); ++it) {
+      Mat8 V = Mat8::Zero();
+      Vec8 bvec = Vec8::Zero();
+      V.bottomRightCorner<3, 3>() += prior_ba * Matrix3d::Identity();
+      bvec.tail<3>() -= prior_ba * b_a;
+      std::vector<Matrix3d> U(subset.size(), Matrix3d::Zero());
+      std::vector<Eigen::Matrix<double, 3, 8>> Wm(subset.size(), Eigen::Matrix<double, 3, 8>::Zero());
+      std::vector<Vector3d> up(subset.size(), Vector3d::Zero());
+      for (std::size_t j = 0; j < subset.size(); ++j)
+        for (std::size_t i = 0; i < frames.size(); ++i) {
+          Vector2d r;
+          Eigen::Matrix<double, 2, 3> Jp;
+          Eigen::Matrix<double, 2, 8> Jt;
+          if (!residual(j, i, pts[j], v0, g, b_a, r, &Jp, &Jt)) continue;
+          const double e = r.norm();
+          const double w = e <= huber ? 1.0 : huber / e;
+          U[j] += w * Jp.transpose() * Jp;
+          Wm[j] += w * Jp.transpose() * Jt;
+          up[j] -= w * Jp.transpose() * r;
+          V += w * Jt.transpose() * Jt;
+          bvec -= w * Jt.transpose() * r;
+        }
+      Mat8 S8 = V;
+      Vec8 s8 = bvec;
+      std::vector<Matrix3d> Uinv(subset.size());
+      for (std::size_t j = 0; j < subset.size(); ++j) {
+        Uinv[j] = (U[j] + lambda * Matrix3d(U[j].diagonal().asDiagonal()) + 1e-9 * Matrix3d::Identity()).inverse();
+        S8 -= Wm[j].transpose() * Uinv[j] * Wm[j];
+        s8 -= Wm[j].transpose() * Uinv[j] * up[j];
+      }
+      H_reduced = S8;
+      const Vec8 step = (S8 + lambda * Mat8(S8.diagonal().asDiagonal())).ldlt().solve(s8);
+      if (!step.allFinite()) break;
+      std::vector<Vector3d> pts1(subset.size());
+      for (std::size_t j = 0; j < subset.size(); ++j) pts1[j] = pts[j] + Uinv[j] * (up[j] - Wm[j] * step);
+      const Vector3d v1 = v0 + step.head<3>();
+      const Vector3d g1 = (g + tangent(g) * step.segment<2>(3) * o.gravity).normalized() * o.gravity;
+      const Vector3d b1 = b_a + step.tail<3>();
+      const double c1 = cost(pts1, v1, g1, b1);
+      if (c1 < c0) {
+        const double gain = c0 - c1;
+        pts = std::move(pts1);
+        v0 = v1;
+        g = g1;
+        b_a = b1;
+        c0 = c1;
+        lambda = std::max(1e-7, lambda / 10.0);
+        if (gain < 1e-6 * c0 || step.norm() < 1e-7) break;
+      } else {
+        lambda *= 10.0;
+        if (lambda > 1e4) break;
+      }
+    }
+    // Per-feature RMS and depth at the first image with the refined solution.
+    sol.rms_px.assign(subset.size(), std::numeric_limits<double>::infinity());
+    sol.depth.assign(subset.size(), std::numeric_limits<double>::quiet_NaN());
+    std::vector<double> all_sq;
+    for (std::size_t j = 0; j < subset.size(); ++j) {
+      double sse = 0.0;
+      int n = 0;
+      bool front = true;
+      for (std::size_t i = 0; i < std::min(frames.size(), tracks[static_cast<std::size_t>(subset[j])].px.size()); ++i) {
+        Vector2d r;
+        if (!residual(j, i, pts[j], v0, g, b_a, r, nullptr, nullptr)) {
+          front = false;
+          continue;
+        }
+        sse += r.squaredNorm();
+        all_sq.push_back(r.squaredNorm());
+        ++n;
+      }
+      if (front && n > 0) {
+        sol.rms_px[j] = std::sqrt(sse / n);
+        const double dt = pre[0].dt;
+        sol.depth[j] = (R_SR * pre[0].dR.transpose() *
+                            (pts[j] - v0 * dt - 0.5 * g * dt * dt - pre[0].alpha + pre[0].alpha_ba * b_a) +
+                        t_SR)
+                           .norm();
+      }
+    }
+    // Covariance of [v0 δg b_a]: the reduced information with the tracking noise (the median squared residual per
+    // axis, at least (0.5 px)²), gravity mapped back to 3D; kept in the result for the filter's prior.
+    const double sigma2 = std::max(0.25, 0.5 * median(all_sq) / 0.4549);  // median of χ²₂ is 1.386; per axis
+    const Mat8 cov8 = sigma2 * H_reduced.ldlt().solve(Mat8::Identity());
+    Eigen::Matrix<double, 6, 8> M = Eigen::Matrix<double, 6, 8>::Zero();
+    M.topLeftCorner<3, 3>().setIdentity();
+    M.block<3, 2>(3, 3) = o.gravity * tangent(g);
+    res.cov_v_g = M * cov8 * M.transpose();
+    res.accel_bias = b_a;
+  }
   // The scale comes from the accelerations: their displacement over the window, |α_i + ½ g t_i²| (R_0), must stand
   // out of the tracking noise and the unmodelled accelerometer bias (½ b t² is 8 mm over 0.4 s for 0.1 m/s²).
   double excitation = 0.0;
@@ -491,9 +650,6 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   res.v0_R = v0;
   res.g_R = g;
   res.median_depth_m = median(depths);
-  // Least-squares covariance of [v0 g]: σ² S⁻¹ with σ² the residual variance per row.
-  const double dof = std::max(1, sol.n_rows - 3 * res.features - 6);
-  res.cov_v_g = (sol.sse_rows / dof) * sol.S.ldlt().solve(Eigen::Matrix<double, 6, 6>::Identity());
   return res;
 }
 
@@ -509,16 +665,19 @@ InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialOption
   if (s.standstill) {
     s.x.segment<3>(I::kWb) = r.gyro_bias;
     s.P = prior_covariance(o.velocity_std_standstill, o.accel_bias_std, 1e-3, o.gravity_std_standstill, R);
+    constrain_gravity_magnitude(s, o);
     return s;
   }
   s.x.segment<3>(I::kV) = R * r.v0_R;
   s.x.segment<3>(I::kWb) = r.gyro_bias;
+  s.x.segment<3>(I::kAb) = r.accel_bias;
   const Eigen::SelfAdjointEigenSolver<Matrix3d> ev(r.cov_v_g.topLeftCorner<3, 3>());
   const Eigen::SelfAdjointEigenSolver<Matrix3d> eg(r.cov_v_g.bottomRightCorner<3, 3>());
   const double v_std = std::max(0.05, 3.0 * std::sqrt(std::max(0.0, ev.eigenvalues().maxCoeff())));
   const double g_std = std::max(0.1, 3.0 * std::sqrt(std::max(0.0, eg.eigenvalues().maxCoeff())));
   s.P = prior_covariance(std::min(v_std, o.velocity_std_motion), o.accel_bias_std, o.gyro_bias_std,
                          std::min(g_std, o.gravity_std_motion), R);
+  constrain_gravity_magnitude(s, o);
   return s;
 }
 

@@ -50,6 +50,7 @@ struct ViInitResult {
   Eigen::Vector3d v0_R = Eigen::Vector3d::Zero();  // velocity at the first image, in R_0
   Eigen::Vector3d g_R = Eigen::Vector3d::Zero();   // gravity in R_0
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel_bias = Eigen::Vector3d::Zero();  // refined with the prior accel_bias_std (Dynamic)
   Eigen::Matrix<double, 6, 6> cov_v_g = Eigen::Matrix<double, 6, 6>::Zero();  // [v₀ g] least-squares covariance
   double median_depth_m = 0.0;  // features' depth in camera 0 at the first image (Dynamic)
   int features = 0;             // tracked through the window

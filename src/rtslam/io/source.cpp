@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -11,6 +14,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/image_header.hpp"
 #include "rtslam/io/text.hpp"
 
 namespace rtslam::io {
@@ -96,11 +100,44 @@ void BadInputReporter::report(std::size_t SourceStats::*counter, const std::stri
   }
 }
 
-cv::Mat read_grey_image(const std::string& path) {
-  // imread logs decoder errors (e.g. libpng "Read Error") itself; we report the failure with the file name.
-  cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  if (!img.empty() && img.type() != CV_8UC1) img.convertTo(img, CV_8UC1);
+cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why) {
+  const auto fail = [why](std::string reason) {
+    if (why) *why = "cannot be decoded: " + std::move(reason);
+    return cv::Mat();
+  };
+  const auto header = read_image_header(data, size);
+  if (!header) return fail("not a PNG, PNM, JPEG, BMP or TIFF image, or its header is truncated");
+  if (const std::string problem = image_header_problem(*header); !problem.empty()) return fail("it " + problem);
+  if (size > static_cast<std::size_t>(std::numeric_limits<int>::max())) return fail("larger than 2 GB");
+  // imdecode logs decoder errors (e.g. libpng "Read Error") itself; callers report the failure with the file name.
+  const cv::Mat bytes(1, static_cast<int>(size), CV_8UC1, const_cast<unsigned char*>(data));
+  cv::Mat img;
+  try {
+    img = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  } catch (const cv::Exception&) {
+    // imdecode throws (rather than returning an empty Mat) on some headers, e.g. a size beyond OpenCV's limits.
+    return fail(fmt::format("{} header rejected by OpenCV", to_string(header->format)));
+  }
+  if (img.empty()) return fail(fmt::format("truncated or corrupt {}", to_string(header->format)));
+  if (img.type() != CV_8UC1) img.convertTo(img, CV_8UC1);
   return img;
+}
+
+cv::Mat read_grey_image(const std::string& path, std::string* why) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    if (why) *why = "cannot be opened";
+    return {};
+  }
+  // The largest image accepted, uncompressed at 8 bytes a pixel, plus room for metadata: nothing longer is read.
+  constexpr std::uintmax_t kMaxBytes = 8 * static_cast<std::uintmax_t>(kMaxImagePixels) + (1u << 20);
+  std::error_code ec;
+  if (const auto bytes = fs::file_size(path, ec); !ec && bytes > kMaxBytes) {
+    if (why) *why = fmt::format("cannot be decoded: {} bytes, larger than any image accepted", bytes);
+    return {};
+  }
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return decode_grey_image(bytes.data(), bytes.size(), why);
 }
 
 namespace {
@@ -217,17 +254,17 @@ std::optional<Measurement> IndexedSource::next() {
     frame.t = e.t;
     frame.camera = e.camera;
     frame.path = e.path;
-    frame.image = read_grey_image(e.path);
+    std::string why;
+    frame.image = read_grey_image(e.path, &why);
     if (frame.image.empty()) {
       const bool missing = !fs::exists(e.path);
       reporter_.report(missing ? &SourceStats::missing_images : &SourceStats::undecodable_images,
-                       fmt::format("{}: image {} {}", e.listed_at, e.path,
-                                   missing ? "not found" : "cannot be decoded (truncated or not an image)"),
-                       true);
+                       fmt::format("{}: image {} {}", e.listed_at, e.path, missing ? "not found" : why), true);
       continue;
     }
     const auto c = static_cast<std::size_t>(e.camera);
-    if (c < image_sizes_.size() && image_sizes_[c].area() > 0 && frame.image.size() != image_sizes_[c]) {
+    const bool checked = c < image_sizes_.size() && image_sizes_[c].width > 0 && image_sizes_[c].height > 0;
+    if (checked && frame.image.size() != image_sizes_[c]) {
       reporter_.report(&SourceStats::wrong_size_images,
                        fmt::format("{}: image {} is {}x{}, the calibration of camera {} says {}x{}", e.listed_at,
                                    e.path, frame.image.cols, frame.image.rows, e.camera, image_sizes_[c].width,
@@ -272,7 +309,7 @@ std::optional<Measurement> VideoSource::next() {
       frame.image = raw;
     }
     if (frame.image.depth() != CV_8U) frame.image.convertTo(frame.image, CV_8U);
-    if (expected_size_.area() > 0 && frame.image.size() != expected_size_) {
+    if (expected_size_.width > 0 && expected_size_.height > 0 && frame.image.size() != expected_size_) {
       reporter_.report(&SourceStats::wrong_size_images,
                        fmt::format("{}: frame is {}x{}, the calibration says {}x{}", frame.path, frame.image.cols,
                                    frame.image.rows, expected_size_.width, expected_size_.height));

@@ -142,6 +142,14 @@ cv::Mat read_grey_image(const std::string& path, std::string* why) {
 
 namespace {
 
+/// later - earlier in seconds, for any two int64 times (the difference itself may not fit int64).
+double seconds_between(TimeNs later, TimeNs earlier) {
+  const bool forward = later >= earlier;
+  const std::uint64_t d = forward ? static_cast<std::uint64_t>(later) - static_cast<std::uint64_t>(earlier)
+                                  : static_cast<std::uint64_t>(earlier) - static_cast<std::uint64_t>(later);
+  return (forward ? 1.0 : -1.0) * static_cast<double>(d) * 1e-9;
+}
+
 std::string imu_location(const std::string& where, const std::vector<int>& lines, std::size_t i, TimeNs t) {
   if (!where.empty() && i < lines.size()) return fmt::format("{}:{}", where, lines[i]);
   if (!where.empty()) return fmt::format("{} (t = {} s)", where, format_seconds(t));
@@ -157,10 +165,10 @@ IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_li
   // IMU: finite values, strictly increasing time, no long dropouts.
   double period_s = options.imu_rate_hz > 0 ? 1.0 / options.imu_rate_hz : 0.0;
   if (period_s == 0.0 && imu.size() > 2) {
-    std::vector<TimeNs> dts;
-    for (std::size_t i = 1; i < imu.size(); ++i) dts.push_back(imu[i].t - imu[i - 1].t);
+    std::vector<double> dts;
+    for (std::size_t i = 1; i < imu.size(); ++i) dts.push_back(seconds_between(imu[i].t, imu[i - 1].t));
     std::nth_element(dts.begin(), dts.begin() + static_cast<std::ptrdiff_t>(dts.size() / 2), dts.end());
-    period_s = to_seconds(std::max<TimeNs>(dts[dts.size() / 2], 1));
+    period_s = std::max(dts[dts.size() / 2], 1e-9);
   }
   imu_.reserve(imu.size());
   for (std::size_t i = 0; i < imu.size(); ++i) {
@@ -187,12 +195,13 @@ IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_li
         continue;
       }
       if (period_s > 0) {
-        const double missing = std::round(to_seconds(s.t - prev) / period_s) - 1.0;
+        const double gap_s = seconds_between(s.t, prev);
+        const double missing = std::round(gap_s / period_s) - 1.0;
         if (missing > options.max_imu_dropout) {
           reporter_.report(&SourceStats::imu_gaps,
-                           fmt::format("{}: IMU gap of {:.3f} s before t = {} s (~{} samples missing, more than {})",
-                                       imu_location(imu_where, imu_lines, i, s.t), to_seconds(s.t - prev),
-                                       format_seconds(s.t), static_cast<long long>(missing), options.max_imu_dropout));
+                           fmt::format("{}: IMU gap of {:.3f} s before t = {} s (~{:.0f} samples missing, more than {})",
+                                       imu_location(imu_where, imu_lines, i, s.t), gap_s, format_seconds(s.t),
+                                       missing, options.max_imu_dropout));
           // Nothing to drop for a gap: the sample after it is kept.
         }
       }

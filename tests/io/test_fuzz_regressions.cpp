@@ -19,6 +19,7 @@
 #include "rtslam/io/image_header.hpp"
 #include "rtslam/io/source.hpp"
 #include "rtslam/io/text.hpp"
+#include "rtslam/io/trajectory_io.hpp"
 
 namespace rtslam::io {
 namespace {
@@ -135,6 +136,26 @@ TEST(FuzzRegressions, KittiCalibNonFiniteNumbers) {
   EXPECT_THROW_WITH(load_kitti_calib(dir / "calib.txt", 0), ConfigError, "'P0:' contains a non-finite number");
   write_text(dir / "calib.txt", "P0: 1e-320 0 4 -1e10 0 10 3 0 0 0 1 0\n");
   EXPECT_THROW_WITH(load_kitti_calib(dir / "calib.txt", 0), ConfigError, "non-finite position");
+}
+
+TEST(FuzzRegressions, KittiRotationsAreUnitQuaternionsBothWays) {
+  // Review of the fuzz_trajectory round trip: a KITTI rotation off by up to 1e-3 became a non-unit quaternion,
+  // and write_kitti wrote toRotationMatrix() of whatever quaternion it had: from a TUM pose 1e-2 off unit norm,
+  // a matrix read_kitti rejects.
+  TempDir dir;
+  write_text(dir / "scaled.txt", "0.8779335949151289 -0.47961730881964465 0 1 0.47961730881964465 "
+                                 "0.8779335949151289 0 2 0 0 1.0004 3\n");
+  const Trajectory kitti = read_trajectory(dir / "scaled.txt", TrajectoryFormat::Kitti);
+  ASSERT_EQ(kitti.poses.size(), 1u);
+  EXPECT_NEAR(kitti.poses[0].q_WR.norm(), 1.0, 1e-15);
+  const Eigen::Quaterniond q_z(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()));
+  EXPECT_LT(kitti.poses[0].q_WR.angularDistance(q_z), 1e-3);  // the matrix is a rotation only to 1e-3
+  write_text(dir / "tum.txt", "1 0 0 0 0.3 0.1 0.2 0.935\n");  // norm 1.0059
+  const Trajectory tum = read_trajectory(dir / "tum.txt", TrajectoryFormat::Tum);
+  write_kitti(dir / "00.txt", tum);
+  const Trajectory back = read_trajectory(dir / "00.txt", TrajectoryFormat::Kitti);
+  ASSERT_EQ(back.poses.size(), 1u);
+  EXPECT_LT(back.poses[0].q_WR.angularDistance(tum.poses[0].q_WR.normalized()), 1e-12);
 }
 
 // ------------------------------------------------------------------------------------------------ lists and times

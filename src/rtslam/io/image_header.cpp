@@ -177,7 +177,11 @@ std::optional<ImageHeader> read_image_header(const unsigned char* data, std::siz
   const Bytes b{data, size, true};
   static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
   if (size >= 8 && std::memcmp(data, kPng, 8) == 0) return png(b);
-  if (data[0] == 'P' && data[1] >= '1' && data[1] <= '6') return pnm(b);
+  // Each signature is the one OpenCV's decoder for the format checks, and no decoder OpenCV tries before it
+  // matches these bytes: the decoder whose header was checked here is the one imdecode uses. (A "P4" not followed
+  // by white space is no PNM to OpenCV, which went on to try GDCM's DICOM reader: 1.6 GB.)
+  const auto space = [](unsigned char c) { return c == ' ' || (c >= '\t' && c <= '\r'); };
+  if (data[0] == 'P' && data[1] >= '1' && data[1] <= '6' && space(data[2])) return pnm(b);
   if (data[0] == 0xFF && data[1] == 0xD8 && data[2] == 0xFF) return jpeg(b);
   if (data[0] == 'B' && data[1] == 'M') return bmp(Bytes{data, size, false});
   if ((std::memcmp(data, "II*\0", 4) == 0) || (std::memcmp(data, "MM\0*", 4) == 0)) return tiff(b);

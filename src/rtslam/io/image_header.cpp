@@ -47,7 +47,9 @@ std::optional<ImageHeader> png(const Bytes& b) {
 }
 
 std::optional<ImageHeader> pnm(const Bytes& b) {
-  // "P1".."P6", then width and height as decimal text separated by white space and '#' comments.
+  // "P1".."P6", then width and height as decimal text separated by white space and '#' comments, read as OpenCV's
+  // ReadNumber does: the byte that ends a number is consumed with it, so in "33313#23332\n3" the '#' starts no
+  // comment and the height is 23332 (reading 3 here let a 777 MB PBM through).
   std::size_t pos = 2;
   long long dims[2] = {0, 0};
   for (long long& d : dims) {
@@ -67,6 +69,7 @@ std::optional<ImageHeader> pnm(const Bytes& b) {
       d = d * 10 + (b.data[pos++] - '0');
     }
     if (digits == 0) return {};
+    ++pos;  // the byte after the digits
   }
   return sized(ImageFormat::Pnm, dims[0], dims[1]);
 }

@@ -92,11 +92,14 @@ for t in "${targets[@]}"; do
     -max_len="${max_len[$t]}" -timeout=5 -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 \
     -artifact_prefix="$out/findings/$t/" "$out/corpus/$t" "$root/fuzz/corpus/$t" "$seeds/$t") \
     >"$out/logs/$t.log" 2>&1 || rc=$?
-  stats=$(grep -E '^#[0-9]+' "$out/logs/$t.log" | tail -n 1 || true)
-  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$out/logs/$t.log" | tail -n 1)
-  rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$out/logs/$t.log" | tail -n 1)
+  log=$out/logs/$t.log
+  final_stat() { sed -n "s/^stat::$1: *//p" "$log" | tail -n 1; }
+  last=$(grep -E '^#[0-9]+' "$log" | tail -n 1 || true)
+  status_field() { sed -n "s/.* $1: \([^ ]*\).*/\1/p" <<<"$last"; }
+  pcs=$(sed -n 's/.*(\([0-9]*\) inline 8-bit counters).*/\1/p' "$log" | head -n 1)
   found=$(find "$out/findings/$t" -type f | wc -l)
-  line="$t: ${seconds} s, ${execs:-?} runs (${rate:-?}/s), ${stats#* }; findings: $found (exit $rc)"
+  line="$t: ${seconds} s, $(final_stat number_of_executed_units) runs ($(final_stat average_exec_per_sec)/s), coverage $(status_field cov)"
+  line+=" of ${pcs:-?} counters, $(status_field ft) features, corpus $(status_field corp); findings: $found (exit $rc)"
   echo "fuzz: $line"
   echo "$line" >>"$summary"
   if ((rc != 0 || found > 0)); then

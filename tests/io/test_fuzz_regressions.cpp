@@ -230,8 +230,10 @@ std::string decode_problem(const std::vector<unsigned char>& b) {
   return why;
 }
 
-/// A little-endian TIFF: 8-bit grey, `width` x `height`, `rows_per_strip` rows a strip, one strip of 8 bytes.
-std::vector<unsigned char> tiff(std::uint32_t width, std::uint32_t height, std::uint32_t rows_per_strip) {
+/// A little-endian TIFF: 8-bit grey, `width` x `height`, `rows_per_strip` rows a strip, one strip of 8 bytes; with
+/// a TileWidth tag too when `tile_width` is not 0.
+std::vector<unsigned char> tiff(std::uint32_t width, std::uint32_t height, std::uint32_t rows_per_strip,
+                                std::uint32_t tile_width = 0) {
   std::vector<unsigned char> b = {'I', 'I', 42, 0, 8, 0, 0, 0};
   const auto u16 = [&b](std::uint32_t v) {
     b.push_back(v & 0xFF);
@@ -241,9 +243,11 @@ std::vector<unsigned char> tiff(std::uint32_t width, std::uint32_t height, std::
     u16(v & 0xFFFF);
     u16(v >> 16);
   };
-  const std::vector<std::pair<std::uint32_t, std::uint32_t>> entries = {
-      {256, width}, {257, height}, {258, 8}, {259, 1}, {262, 1}, {273, 8 + 2 + 8 * 12 + 4}, {277, 1},
+  const std::uint32_t n = tile_width ? 9 : 8;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> entries = {
+      {256, width}, {257, height}, {258, 8}, {259, 1}, {262, 1}, {273, 8 + 2 + n * 12 + 4}, {277, 1},
       {278, rows_per_strip}};
+  if (tile_width) entries.emplace_back(322, tile_width);
   u16(static_cast<std::uint32_t>(entries.size()));
   for (const auto& [tag, value] : entries) {
     u16(tag);
@@ -291,6 +295,10 @@ TEST(FuzzRegressions, HugeDeclaredImagesAreRefusedBeforeDecoding) {
   const cv::Mat pbm_img = decode_grey_image(pbm.data(), pbm.size(), &pbm_why);
   ASSERT_FALSE(pbm_img.empty()) << pbm_why;
   EXPECT_EQ(pbm_img.size(), cv::Size(4, 2));  // as OpenCV reads it: 4 wide, 2 high
+  // fuzz_image_decode, 10-minute run: a TileWidth without TileLength makes libtiff read tiles of RowsPerStrip
+  // rows, so OpenCV's buffer was 18761 x 16392 RGBA px (1.2 GB) for a 32x247 image the header check passed.
+  EXPECT_NE(decode_problem(tiff(32, 247, 16392, 18761)).find("strips or tiles hold 307530312 px"),
+            std::string::npos);
   // The same TIFF with sane strips decodes.
   std::string why;
   const auto ok = tiff(4, 2, 2);

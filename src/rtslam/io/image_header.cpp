@@ -160,14 +160,13 @@ std::optional<ImageHeader> tiff(Bytes b) {
   if (!h) return {};
   h->tiff_bits_per_sample = static_cast<int>(std::min<std::uint32_t>(bps, 1u << 20));
   h->tiff_samples_per_pixel = static_cast<int>(std::min<std::uint32_t>(spp, 1u << 20));
-  // As OpenCV sizes its buffer: a tile, or a strip of RowsPerStrip rows (not clamped to the height; 0 and the
-  // 2^32-1 "one strip" value mean the whole image).
-  const bool tiled = tile_w || tile_h;
-  std::uint32_t block_h = tiled ? (tile_h ? tile_h : height) : height;
-  if (!tiled) {
-    for (const std::uint32_t r : rows_per_strip) block_h = std::max(block_h, r == 0 || r == 0xFFFFFFFFu ? height : r);
-  }
-  const std::uint32_t block_w = tiled && tile_w ? tile_w : width;
+  // OpenCV sizes its buffer as a tile, or a strip of RowsPerStrip rows (not clamped to the height; 0 and the
+  // 2^32-1 "one strip" value mean the whole image). How libtiff combines the tags is its business (a TileWidth
+  // without TileLength gives tiles of RowsPerStrip rows: 1.2 GB for a 265-byte file), so the block is bounded by
+  // the largest width and the largest height that any of these tags states.
+  std::uint32_t block_h = std::max(height, tile_h);
+  for (const std::uint32_t r : rows_per_strip) block_h = std::max(block_h, r == 0 || r == 0xFFFFFFFFu ? height : r);
+  const std::uint32_t block_w = std::max(width, tile_w);
   const unsigned long long block = 1ULL * block_w * block_h;
   h->tiff_block_pixels = static_cast<long long>(std::min<unsigned long long>(block, 1ULL << 62));
   return h;

@@ -4,6 +4,7 @@
 # target for SECONDS (default 600), one after another, in one process each (the machine has 2 shared cores).
 #
 #   bash scripts/fuzz.sh [SECONDS] [TARGET...]      e.g.  bash scripts/fuzz.sh 60 calib_rig trajectory
+#   bash scripts/fuzz.sh 0                          build and replay only, no fuzzing (what scripts/test.sh runs)
 #
 # Seeds: fuzz/corpus/<target>/ (committed, small) and build-fuzz/seeds/<target>/, made here from
 # ../shared/datasets when it exists (never committed). The corpus a run grows is kept in build-fuzz/corpus/<target>/
@@ -43,6 +44,10 @@ rm -rf "$TMPDIR" && mkdir -p "$TMPDIR" "$out/logs"
 
 echo "fuzz: replaying fuzz/corpus/"
 ctest --test-dir build-fuzz/fuzz --output-on-failure
+if ((seconds == 0)); then
+  echo "fuzz: replay only (SECONDS is 0), no fuzzing"
+  exit 0
+fi
 
 # Seeds from the shared datasets: short heads of their text files, small crops of their images.
 data=$root/../shared/datasets

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The test command: installs dependencies, builds with warnings as errors, runs the suite (all but the `slow`
-# label), then builds and runs it again under AddressSanitizer + UndefinedBehaviorSanitizer.
+# label), then builds and runs it again under AddressSanitizer + UndefinedBehaviorSanitizer, then replays the
+# parsers' fuzz corpus (past findings and seeds) through the fuzz targets, without fuzzing.
 # Long acceptance runs: `ctest --test-dir build -L slow` (see docs/testing.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,3 +19,7 @@ cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_
 cmake --build build-asan -j "$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan -LE "slow|no-asan" --output-on-failure -j "$jobs"
+
+# The parsers' fuzz targets (clang, build-fuzz/) run the committed corpus once, as regression tests. Fuzzing
+# campaigns are not part of this command: `bash scripts/fuzz.sh [SECONDS]` (docs/testing.md, "Fuzzing").
+bash scripts/fuzz.sh 0

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The test command: installs dependencies, builds with warnings as errors, runs the suite (all but the `slow`
-# label), then builds and runs it again under AddressSanitizer + UndefinedBehaviorSanitizer.
+# label), then builds and runs it again under AddressSanitizer + UndefinedBehaviorSanitizer. The fuzz findings run
+# in both as tests/io/test_fuzz_regressions; replaying the whole corpus through the clang fuzz targets
+# (`bash scripts/fuzz.sh 0`, 4-5 min of compiling) stays out of this command for the CI time budget.
 # Long acceptance runs: `ctest --test-dir build -L slow` (see docs/testing.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."

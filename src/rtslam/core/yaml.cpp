@@ -1,5 +1,6 @@
 #include "rtslam/core/yaml.hpp"
 
+#include <cmath>
 #include <filesystem>
 
 namespace rtslam {
@@ -56,6 +57,9 @@ void YamlMap::get_matrix(const std::string& key, Eigen::Ref<Eigen::MatrixXd> val
     throw ConfigError(fmt::format("{}: '{}' has {} numbers, expected {} ({}x{})", where_, key, flat.size(),
                                   value.size(), value.rows(), value.cols()));
   }
+  for (double x : flat) {
+    if (!std::isfinite(x)) throw ConfigError(fmt::format("{}: '{}' contains a non-finite number", where_, key));
+  }
   for (Eigen::Index r = 0; r < value.rows(); ++r)
     for (Eigen::Index c = 0; c < value.cols(); ++c) value(r, c) = flat[static_cast<size_t>(r * value.cols() + c)];
 }
@@ -63,7 +67,12 @@ void YamlMap::get_matrix(const std::string& key, Eigen::Ref<Eigen::MatrixXd> val
 void YamlMap::finish() const {
   if (!node_ || !node_.IsMap()) return;
   for (const auto& kv : node_) {
-    const auto key = kv.first.as<std::string>();
+    // A key that is a list, a mapping or null (`? [a, b]: c`, `~: c`) is never one we read.
+    if (!kv.first.IsScalar()) {
+      const char* kind = kv.first.IsSequence() ? "list" : kv.first.IsMap() ? "mapping" : "null";
+      throw ConfigError(fmt::format("{}: unknown key (a {} at line {})", where_, kind, kv.first.Mark().line + 1));
+    }
+    const std::string& key = kv.first.Scalar();
     if (!used_.count(key)) throw ConfigError(fmt::format("{}: unknown key '{}'", where_, key));
   }
 }

@@ -63,6 +63,33 @@ std::vector<double> numbers(const YAML::Node& node, const std::string& key, cons
   return out;
 }
 
+/// An image side [px] given as a number in a foreign file: an integer in [1, kMaxImageSide] (a cast of anything else
+/// to int would be undefined or silently truncated).
+int image_side(double v, const std::string& where, const std::string& key) {
+  require_bound(v >= 1 && v <= kMaxImageSide && v == std::floor(v), where, key, v,
+                fmt::format("an integer in [1, {}]", kMaxImageSide));
+  return static_cast<int>(v);
+}
+
+/// A time offset in seconds, converted to ns: it must be finite and within the int64 ns range.
+TimeNs offset_ns(double seconds, const std::string& where, const std::string& key) {
+  require_bound(std::isfinite(seconds) && std::abs(seconds) <= 9.2e9, where, key, seconds,
+                "finite and within +-9.2e9 s");
+  return from_seconds(seconds);
+}
+
+/// Runs a loader; a yaml-cpp exception that escapes it (a node of another kind than the loader expects, met
+/// somewhere not checked explicitly) becomes a ConfigError naming the file.
+template <class F>
+auto translate_yaml_errors(const std::string& path, F&& load) -> decltype(load()) {
+  try {
+    return load();
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(e.mark.is_null() ? fmt::format("{}: {}", path, e.msg)
+                                       : fmt::format("{}: line {}: {}", path, e.mark.line + 1, e.msg));
+  }
+}
+
 Eigen::Matrix4d matrix4(const YAML::Node& node, const std::string& key, const std::string& where) {
   const auto v = numbers(node, key, where, 16);
   Eigen::Matrix4d T;
@@ -79,8 +106,13 @@ Eigen::Isometry3d to_isometry(const Eigen::Matrix4d& T) {
 }
 
 void check_intrinsics(const CameraCalibration& cam, const std::string& where) {
-  require_bound(cam.width > 0, where, "width", cam.width, "> 0");
-  require_bound(cam.height > 0, where, "height", cam.height, "> 0");
+  require_bound(cam.width > 0 && cam.width <= kMaxImageSide, where, "width", cam.width,
+                fmt::format("in [1, {}]", kMaxImageSide));
+  require_bound(cam.height > 0 && cam.height <= kMaxImageSide, where, "height", cam.height,
+                fmt::format("in [1, {}]", kMaxImageSide));
+  const long long pixels = static_cast<long long>(cam.width) * cam.height;
+  require_bound(pixels <= kMaxImagePixels, where, "width x height", static_cast<double>(pixels),
+                fmt::format("<= {}", kMaxImagePixels));
   require_bound(cam.fx > 0 && std::isfinite(cam.fx), where, "fx", cam.fx, "> 0");
   require_bound(cam.fy > 0 && std::isfinite(cam.fy), where, "fy", cam.fy, "> 0");
   require_bound(std::isfinite(cam.cx), where, "cx", cam.cx, "finite");
@@ -91,14 +123,31 @@ void check_intrinsics(const CameraCalibration& cam, const std::string& where) {
     throw ConfigError(fmt::format("{}: distortion model '{}' takes {} coefficients, got {}", where,
                                   to_string(cam.distortion), n, cam.distortion_coeffs.size()));
   }
+  for (double k : cam.distortion_coeffs) {
+    if (!std::isfinite(k)) throw ConfigError(fmt::format("{}: a distortion coefficient is not finite", where));
+  }
 }
 
 void check_imu(const ImuCalibration& imu, const std::string& where) {
-  require_bound(imu.rate_hz > 0, where, "rate_hz", imu.rate_hz, "> 0");
-  require_bound(imu.gyro_noise_density > 0, where, "gyroscope_noise_density", imu.gyro_noise_density, "> 0");
-  require_bound(imu.accel_noise_density > 0, where, "accelerometer_noise_density", imu.accel_noise_density, "> 0");
-  require_bound(imu.gyro_random_walk >= 0, where, "gyroscope_random_walk", imu.gyro_random_walk, ">= 0");
-  require_bound(imu.accel_random_walk >= 0, where, "accelerometer_random_walk", imu.accel_random_walk, ">= 0");
+  const auto positive = [](double x) { return x > 0 && std::isfinite(x); };
+  const auto non_negative = [](double x) { return x >= 0 && std::isfinite(x); };
+  require_bound(positive(imu.rate_hz), where, "rate_hz", imu.rate_hz, "> 0, finite");
+  require_bound(positive(imu.gyro_noise_density), where, "gyroscope_noise_density", imu.gyro_noise_density,
+                "> 0, finite");
+  require_bound(positive(imu.accel_noise_density), where, "accelerometer_noise_density", imu.accel_noise_density,
+                "> 0, finite");
+  require_bound(non_negative(imu.gyro_random_walk), where, "gyroscope_random_walk", imu.gyro_random_walk,
+                ">= 0, finite");
+  require_bound(non_negative(imu.accel_random_walk), where, "accelerometer_random_walk", imu.accel_random_walk,
+                ">= 0, finite");
+  if (imu.gyro_saturation) {
+    require_bound(positive(*imu.gyro_saturation), where, "gyroscope_saturation", *imu.gyro_saturation,
+                  "> 0, finite");
+  }
+  if (imu.accel_saturation) {
+    require_bound(positive(*imu.accel_saturation), where, "accelerometer_saturation", *imu.accel_saturation,
+                  "> 0, finite");
+  }
 }
 
 std::string folder_name(const std::string& path) {
@@ -149,6 +198,7 @@ int distortion_coefficient_count(DistortionModel model) {
 
 void check_extrinsic(const Eigen::Matrix4d& T, const std::string& where, const std::string& key,
                      std::vector<std::string>* warnings, bool warn_far) {
+  if (!T.allFinite()) throw ConfigError(fmt::format("{}: '{}' contains a non-finite number", where, key));
   const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
   const double err = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
   const double det = R.determinant();
@@ -189,12 +239,14 @@ YAML::Node load_yaml_lenient(const std::string& path) {
   }
 }
 
-CameraCalibration load_euroc_camera(const std::string& path, std::vector<std::string>* warnings) {
+namespace {
+
+CameraCalibration euroc_camera(const std::string& path, std::vector<std::string>* warnings) {
   const YAML::Node y = load_yaml_lenient(path);
   if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
-  if (y["sensor_type"] && lower(y["sensor_type"].as<std::string>()) != "camera") {
+  if (y["sensor_type"] && lower(need<std::string>(y, "sensor_type", path)) != "camera") {
     throw ConfigError(fmt::format("{}: sensor_type is '{}', expected 'camera'", path,
-                                  y["sensor_type"].as<std::string>()));
+                                  need<std::string>(y, "sensor_type", path)));
   }
   CameraCalibration cam;
   cam.name = folder_name(path);
@@ -203,8 +255,8 @@ CameraCalibration load_euroc_camera(const std::string& path, std::vector<std::st
     throw ConfigError(fmt::format("{}: camera_model '{}' is not supported (only pinhole)", path, model));
   }
   const auto res = numbers(y, "resolution", path, 2);
-  cam.width = static_cast<int>(res[0]);
-  cam.height = static_cast<int>(res[1]);
+  cam.width = image_side(res[0], path, "resolution[0]");
+  cam.height = image_side(res[1], path, "resolution[1]");
   if (y["rate_hz"]) cam.rate_hz = need<double>(y, "rate_hz", path);
   const auto k = numbers(y, "intrinsics", path, 4);
   cam.fx = k[0];
@@ -221,11 +273,20 @@ CameraCalibration load_euroc_camera(const std::string& path, std::vector<std::st
   return cam;
 }
 
-ImuCalibration load_euroc_imu(const std::string& path) {
+}  // namespace
+
+CameraCalibration load_euroc_camera(const std::string& path, std::vector<std::string>* warnings) {
+  return translate_yaml_errors(path, [&] { return euroc_camera(path, warnings); });
+}
+
+namespace {
+
+ImuCalibration euroc_imu(const std::string& path) {
   const YAML::Node y = load_yaml_lenient(path);
   if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
-  if (y["sensor_type"] && lower(y["sensor_type"].as<std::string>()) != "imu") {
-    throw ConfigError(fmt::format("{}: sensor_type is '{}', expected 'imu'", path, y["sensor_type"].as<std::string>()));
+  if (y["sensor_type"] && lower(need<std::string>(y, "sensor_type", path)) != "imu") {
+    throw ConfigError(fmt::format("{}: sensor_type is '{}', expected 'imu'", path,
+                                  need<std::string>(y, "sensor_type", path)));
   }
   ImuCalibration imu;
   imu.name = folder_name(path);
@@ -243,11 +304,20 @@ ImuCalibration load_euroc_imu(const std::string& path) {
   return imu;
 }
 
-ImuCalibration load_kalibr_imu(const std::string& path) {
+}  // namespace
+
+ImuCalibration load_euroc_imu(const std::string& path) {
+  return translate_yaml_errors(path, [&] { return euroc_imu(path); });
+}
+
+namespace {
+
+ImuCalibration kalibr_imu(const std::string& path) {
   const YAML::Node root = load_yaml_lenient(path);
   if (!root.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
   const YAML::Node y = root["imu0"] ? root["imu0"] : root;
   const std::string where = root["imu0"] ? path + "/imu0" : path;
+  if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", where));
   ImuCalibration imu;
   imu.rate_hz = need<double>(y, "update_rate", where);
   imu.gyro_noise_density = need<double>(y, "gyroscope_noise_density", where);
@@ -260,7 +330,15 @@ ImuCalibration load_kalibr_imu(const std::string& path) {
   return imu;
 }
 
-Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
+}  // namespace
+
+ImuCalibration load_kalibr_imu(const std::string& path) {
+  return translate_yaml_errors(path, [&] { return kalibr_imu(path); });
+}
+
+namespace {
+
+Rig kalibr(const std::string& camchain_path, const std::string& imu_path) {
   const YAML::Node root = load_yaml_lenient(camchain_path);
   if (!root.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", camchain_path));
   Rig rig;
@@ -270,6 +348,7 @@ Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
     if (!root[name]) break;
     const YAML::Node y = root[name];
     const std::string where = camchain_path + "/" + name;
+    if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", where));
     CameraCalibration cam;
     cam.name = name;
     const std::string model = y["camera_model"] ? need<std::string>(y, "camera_model", where) : "pinhole";
@@ -277,8 +356,8 @@ Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
       throw ConfigError(fmt::format("{}: camera_model '{}' is not supported (only pinhole)", where, model));
     }
     const auto res = numbers(y, "resolution", where, 2);
-    cam.width = static_cast<int>(res[0]);
-    cam.height = static_cast<int>(res[1]);
+    cam.width = image_side(res[0], where, "resolution[0]");
+    cam.height = image_side(res[1], where, "resolution[1]");
     const auto k = numbers(y, "intrinsics", where, 4);
     cam.fx = k[0];
     cam.fy = k[1];
@@ -294,13 +373,21 @@ Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
       check_extrinsic(T_SR, where, "T_cam_imu", &rig.warnings);
       cam.T_RS = to_isometry(T_SR).inverse();
     }
-    if (first && y["timeshift_cam_imu"]) rig.t_d = from_seconds(need<double>(y, "timeshift_cam_imu", where));
+    if (first && y["timeshift_cam_imu"]) {
+      rig.t_d = offset_ns(need<double>(y, "timeshift_cam_imu", where), where, "timeshift_cam_imu");
+    }
     first = false;
     rig.cameras.push_back(cam);
   }
   if (rig.cameras.empty()) throw ConfigError(fmt::format("{}: no 'cam0' entry: not a Kalibr camchain", camchain_path));
   if (!imu_path.empty()) rig.imu = load_kalibr_imu(imu_path);
   return rig;
+}
+
+}  // namespace
+
+Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
+  return translate_yaml_errors(camchain_path, [&] { return kalibr(camchain_path, imu_path); });
 }
 
 CameraCalibration load_monoslam_camera(const std::string& path) {
@@ -320,8 +407,8 @@ CameraCalibration load_monoslam_camera(const std::string& path) {
   };
   CameraCalibration cam;
   cam.name = "cam0";
-  cam.width = static_cast<int>(num("width"));
-  cam.height = static_cast<int>(num("height"));
+  cam.width = image_side(num("width"), path, "width");
+  cam.height = image_side(num("height"), path, "height");
   cam.rate_hz = j.contains("fps") ? num("fps") : 0.0;
   cam.fx = num("focal_length_x");
   cam.fy = num("focal_length_y");
@@ -344,6 +431,38 @@ CameraCalibration load_monoslam_camera(const std::string& path) {
   return cam;
 }
 
+CameraCalibration load_kitti_calib(const std::string& path, int camera) {
+  LineReader in(path);
+  std::string line;
+  const std::string key = fmt::format("P{}:", camera);
+  std::optional<std::vector<double>> P;
+  while (in.next(line)) {
+    const auto f = split(line, ' ');
+    if (f.empty() || f[0] != key) continue;
+    std::vector<double> v(f.size() - 1);
+    bool ok = f.size() == 13;
+    for (size_t i = 1; ok && i < f.size(); ++i) ok = parse_double(f[i], v[i - 1]);
+    if (!ok) throw IoError(fmt::format("{}:{}: '{}' needs 12 numbers", path, in.line_number(), key));
+    P = v;
+  }
+  if (!P) throw IoError(fmt::format("{}: no '{}' line", path, key));
+  CameraCalibration cam;
+  cam.name = fmt::format("cam{}", camera);
+  cam.fx = (*P)[0];
+  cam.cx = (*P)[2];
+  cam.fy = (*P)[5];
+  cam.cy = (*P)[6];
+  for (double x : *P) {
+    if (!std::isfinite(x)) throw ConfigError(fmt::format("{}: '{}' contains a non-finite number", path, key));
+  }
+  if (!(cam.fx > 0) || !(cam.fy > 0)) throw ConfigError(fmt::format("{}: '{}' has fx or fy <= 0", path, key));
+  cam.T_RS.translation() = Eigen::Vector3d(-(*P)[3] / cam.fx, -(*P)[7] / cam.fy, -(*P)[11]);
+  if (!cam.T_RS.translation().allFinite()) {
+    throw ConfigError(fmt::format("{}: '{}' puts the camera at a non-finite position", path, key));
+  }
+  return cam;
+}
+
 namespace {
 
 Eigen::Isometry3d read_T(YamlMap& m, const std::string& key, std::vector<std::string>* warnings, bool warn_far) {
@@ -356,7 +475,9 @@ Eigen::Isometry3d read_T(YamlMap& m, const std::string& key, std::vector<std::st
 
 }  // namespace
 
-Rig load_rig_yaml(const std::string& path) {
+namespace {
+
+Rig rig_yaml(const std::string& path) {
   YamlMap root(load_yaml_lenient(path), path);
   Rig rig;
   if (!root.has("cameras") || !root.node()["cameras"].IsSequence()) {
@@ -415,10 +536,37 @@ Rig load_rig_yaml(const std::string& path) {
     rig.t_d = t_d;
   }
   root.get("t_d", t_d_s);
-  if (t_d_s != 0.0) rig.t_d = from_seconds(t_d_s);
+  if (t_d_s != 0.0) rig.t_d = offset_ns(t_d_s, path, "t_d");
   root.finish();
   return rig;
 }
+
+}  // namespace
+
+Rig load_rig_yaml(const std::string& path) {
+  return translate_yaml_errors(path, [&] { return rig_yaml(path); });
+}
+
+namespace {
+
+/// A YAML double-quoted scalar that reads back as exactly `s` (names may hold ':', '#', quotes or nothing at all).
+std::string yaml_quoted(const std::string& s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (u < 0x20 || u == 0x7f) {
+      out += fmt::format("\\x{:02x}", u);
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+}  // namespace
 
 void write_rig_yaml(const std::string& path, const Rig& rig) {
   auto out = open_for_writing(path);
@@ -435,7 +583,7 @@ void write_rig_yaml(const std::string& path, const Rig& rig) {
   out << "t_d_ns: " << rig.t_d << "  # t_imu = t_cam + t_d\n";
   out << "cameras:\n";
   for (const auto& c : rig.cameras) {
-    out << "  - name: " << c.name << "\n    width: " << c.width << "\n    height: " << c.height
+    out << "  - name: " << yaml_quoted(c.name) << "\n    width: " << c.width << "\n    height: " << c.height
         << "\n    rate_hz: " << format_double(c.rate_hz) << "\n    intrinsics: [" << format_double(c.fx) << ", "
         << format_double(c.fy) << ", " << format_double(c.cx) << ", " << format_double(c.cy) << "]  # fx fy cx cy [px]"
         << "\n    distortion_model: " << to_string(c.distortion) << "\n    distortion_coeffs: [";
@@ -444,7 +592,7 @@ void write_rig_yaml(const std::string& path, const Rig& rig) {
   }
   if (rig.imu) {
     const auto& m = *rig.imu;
-    out << "imu:\n  name: " << m.name << "\n  rate_hz: " << format_double(m.rate_hz)
+    out << "imu:\n  name: " << yaml_quoted(m.name) << "\n  rate_hz: " << format_double(m.rate_hz)
         << "\n  gyro_noise_density: " << format_double(m.gyro_noise_density) << "  # rad/s/sqrt(Hz)"
         << "\n  gyro_random_walk: " << format_double(m.gyro_random_walk) << "  # rad/s^2/sqrt(Hz)"
         << "\n  accel_noise_density: " << format_double(m.accel_noise_density) << "  # m/s^2/sqrt(Hz)"
@@ -456,7 +604,9 @@ void write_rig_yaml(const std::string& path, const Rig& rig) {
   close_checked(out, path);
 }
 
-Rig load_calibration(const std::string& path) {
+namespace {
+
+Rig calibration_by_content(const std::string& path) {
   if (lower(fs::path(path).extension().string()) == ".json") {
     Rig rig;
     rig.cameras.push_back(load_monoslam_camera(path));
@@ -467,7 +617,7 @@ Rig load_calibration(const std::string& path) {
   if (y["cameras"]) return load_rig_yaml(path);
   if (y["cam0"]) return load_kalibr(path);
   if (y["sensor_type"]) {
-    const std::string type = lower(y["sensor_type"].as<std::string>());
+    const std::string type = lower(need<std::string>(y, "sensor_type", path));
     Rig rig;
     if (type == "camera") {
       rig.cameras.push_back(load_euroc_camera(path, &rig.warnings));
@@ -487,6 +637,12 @@ Rig load_calibration(const std::string& path) {
   throw ConfigError(fmt::format("{}: not a known calibration file (rtslam 'cameras:', Kalibr 'cam0:', EuRoC "
                                 "'sensor_type:', Kalibr imu 'imu0:')",
                                 path));
+}
+
+}  // namespace
+
+Rig load_calibration(const std::string& path) {
+  return translate_yaml_errors(path, [&] { return calibration_by_content(path); });
 }
 
 }  // namespace rtslam::io

@@ -21,6 +21,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "rtslam/core/time.hpp"
+#include "rtslam/io/image_header.hpp"  // kMaxImageSide, kMaxImagePixels: the largest camera accepted
 
 namespace rtslam::io {
 
@@ -83,6 +84,12 @@ ImuCalibration load_kalibr_imu(const std::string& path);
 /// SceneLib's camera frame and MonoSLAM's initial state (init/initial_state.json) applies to the robot as is.
 /// The rate is the file's `fps` (25 for the Davison sequence, whose README says 30: override with the rate option).
 CameraCalibration load_monoslam_camera(const std::string& path);
+
+/// KITTI odometry `calib.txt`: the `P<camera>:` line, the 3x4 projection matrix P_N = K [I | t_N] of the
+/// rectified camera N (12 numbers, row-major). Returns the intrinsics (no distortion: KITTI images are rectified)
+/// and T_RS with R = camera 0 (translation -t_N: camera N sits at x = P[3] / -fx from camera 0). The image size and
+/// rate are not in the file: width, height and rate_hz are 0 (the KITTI reader takes them from the images).
+CameraCalibration load_kitti_calib(const std::string& path, int camera);
 
 /// rtslam's own rig YAML (strict: unknown keys are errors). Format in docs/datasets.md.
 Rig load_rig_yaml(const std::string& path);

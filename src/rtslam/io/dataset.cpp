@@ -275,38 +275,20 @@ Dataset open_kitti(const fs::path& seq, const DatasetOptions& o) {
   }
   if (!o.calibration.empty()) {
     ds.rig = load_calibration(o.calibration);
-    ds.rig.cameras = {ds.rig.cameras.at(0)};
+    if (ds.rig.cameras.empty()) throw ConfigError(fmt::format("{}: calibration has no camera", o.calibration));
+    ds.rig.cameras = {ds.rig.cameras.front()};
   } else {
-    const std::string calib = (seq / "calib.txt").string();
-    LineReader in(calib);
-    std::string line;
-    const std::string key = fmt::format("P{}:", cam_index);
-    std::optional<std::vector<double>> P;
-    while (in.next(line)) {
-      const auto f = split(line, ' ');
-      if (f.empty() || f[0] != key) continue;
-      std::vector<double> v(f.size() - 1);
-      bool ok = f.size() == 13;
-      for (size_t i = 1; ok && i < f.size(); ++i) ok = parse_double(f[i], v[i - 1]);
-      if (!ok) throw IoError(fmt::format("{}:{}: '{}' needs 12 numbers", calib, in.line_number(), key));
-      P = v;
-    }
-    if (!P) throw IoError(fmt::format("{}: no '{}' line", calib, key));
-    CameraCalibration cam;
-    cam.name = fmt::format("cam{}", cam_index);
-    cam.fx = (*P)[0];
-    cam.cx = (*P)[2];
-    cam.fy = (*P)[5];
-    cam.cy = (*P)[6];
-    // P_N = K [I | t_N] with t_N = -baseline * fx on image_1 etc.: camera N sits at x = P[3] / -fx from camera 0.
-    cam.T_RS.translation() = Eigen::Vector3d(-(*P)[3] / cam.fx, -(*P)[7] / cam.fy, -(*P)[11]);
-    const cv::Mat first = read_grey_image(files.front());
-    if (first.empty()) throw IoError(fmt::format("{}: cannot be decoded", files.front()));
+    CameraCalibration cam = load_kitti_calib((seq / "calib.txt").string(), cam_index);
+    std::string why;
+    const cv::Mat first = read_grey_image(files.front(), &why);
+    if (first.empty()) throw IoError(fmt::format("{}: {}", files.front(), why));
     cam.width = first.cols;
     cam.height = first.rows;
-    cam.rate_hz = times.size() > 1 ? (static_cast<double>(times.size()) - 1) / to_seconds(times.back() - times.front())
-                                   : 0.0;
-    if (cam.fx <= 0 || cam.fy <= 0) throw ConfigError(fmt::format("{}: '{}' has fx or fy <= 0", calib, key));
+    // The nominal rate over the sequence (0 = unknown: one time, times out of order, or a span beyond int64 ns;
+    // the order itself is checked by the stream).
+    TimeNs span = 0;
+    const bool spans = times.size() > 1 && !__builtin_sub_overflow(times.back(), times.front(), &span) && span > 0;
+    cam.rate_hz = spans ? (static_cast<double>(times.size()) - 1) / to_seconds(span) : 0.0;
     ds.rig.cameras.push_back(cam);
   }
   std::vector<ImageEntry> images;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 
 #include <fmt/format.h>
@@ -12,6 +14,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/image_header.hpp"
 #include "rtslam/io/text.hpp"
 
 namespace rtslam::io {
@@ -97,14 +100,55 @@ void BadInputReporter::report(std::size_t SourceStats::*counter, const std::stri
   }
 }
 
-cv::Mat read_grey_image(const std::string& path) {
-  // imread logs decoder errors (e.g. libpng "Read Error") itself; we report the failure with the file name.
-  cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  if (!img.empty() && img.type() != CV_8UC1) img.convertTo(img, CV_8UC1);
+cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why) {
+  const auto fail = [why](std::string reason) {
+    if (why) *why = "cannot be decoded: " + std::move(reason);
+    return cv::Mat();
+  };
+  const auto header = read_image_header(data, size);
+  if (!header) return fail("not a PNG, PNM, JPEG, BMP or TIFF image, or its header is truncated");
+  if (const std::string problem = image_header_problem(*header); !problem.empty()) return fail("it " + problem);
+  if (size > static_cast<std::size_t>(std::numeric_limits<int>::max())) return fail("larger than 2 GB");
+  // imdecode logs decoder errors (e.g. libpng "Read Error") itself; callers report the failure with the file name.
+  const cv::Mat bytes(1, static_cast<int>(size), CV_8UC1, const_cast<unsigned char*>(data));
+  cv::Mat img;
+  try {
+    img = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  } catch (const cv::Exception&) {
+    // imdecode throws (rather than returning an empty Mat) on some headers, e.g. a size beyond OpenCV's limits.
+    return fail(fmt::format("{} header rejected by OpenCV", to_string(header->format)));
+  }
+  if (img.empty()) return fail(fmt::format("truncated or corrupt {}", to_string(header->format)));
+  if (img.type() != CV_8UC1) img.convertTo(img, CV_8UC1);
   return img;
 }
 
+cv::Mat read_grey_image(const std::string& path, std::string* why) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    if (why) *why = "cannot be opened";
+    return {};
+  }
+  // The largest image accepted, uncompressed at 8 bytes a pixel, plus room for metadata: nothing longer is read.
+  constexpr std::uintmax_t kMaxBytes = 8 * static_cast<std::uintmax_t>(kMaxImagePixels) + (1u << 20);
+  std::error_code ec;
+  if (const auto bytes = fs::file_size(path, ec); !ec && bytes > kMaxBytes) {
+    if (why) *why = fmt::format("cannot be decoded: {} bytes, larger than any image accepted", bytes);
+    return {};
+  }
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return decode_grey_image(bytes.data(), bytes.size(), why);
+}
+
 namespace {
+
+/// later - earlier in seconds, for any two int64 times (the difference itself may not fit int64).
+double seconds_between(TimeNs later, TimeNs earlier) {
+  const bool forward = later >= earlier;
+  const std::uint64_t d = forward ? static_cast<std::uint64_t>(later) - static_cast<std::uint64_t>(earlier)
+                                  : static_cast<std::uint64_t>(earlier) - static_cast<std::uint64_t>(later);
+  return (forward ? 1.0 : -1.0) * static_cast<double>(d) * 1e-9;
+}
 
 std::string imu_location(const std::string& where, const std::vector<int>& lines, std::size_t i, TimeNs t) {
   if (!where.empty() && i < lines.size()) return fmt::format("{}:{}", where, lines[i]);
@@ -121,10 +165,10 @@ IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_li
   // IMU: finite values, strictly increasing time, no long dropouts.
   double period_s = options.imu_rate_hz > 0 ? 1.0 / options.imu_rate_hz : 0.0;
   if (period_s == 0.0 && imu.size() > 2) {
-    std::vector<TimeNs> dts;
-    for (std::size_t i = 1; i < imu.size(); ++i) dts.push_back(imu[i].t - imu[i - 1].t);
+    std::vector<double> dts;
+    for (std::size_t i = 1; i < imu.size(); ++i) dts.push_back(seconds_between(imu[i].t, imu[i - 1].t));
     std::nth_element(dts.begin(), dts.begin() + static_cast<std::ptrdiff_t>(dts.size() / 2), dts.end());
-    period_s = to_seconds(std::max<TimeNs>(dts[dts.size() / 2], 1));
+    period_s = std::max(dts[dts.size() / 2], 1e-9);
   }
   imu_.reserve(imu.size());
   for (std::size_t i = 0; i < imu.size(); ++i) {
@@ -151,12 +195,13 @@ IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_li
         continue;
       }
       if (period_s > 0) {
-        const double missing = std::round(to_seconds(s.t - prev) / period_s) - 1.0;
+        const double gap_s = seconds_between(s.t, prev);
+        const double missing = std::round(gap_s / period_s) - 1.0;
         if (missing > options.max_imu_dropout) {
           reporter_.report(&SourceStats::imu_gaps,
-                           fmt::format("{}: IMU gap of {:.3f} s before t = {} s (~{} samples missing, more than {})",
-                                       imu_location(imu_where, imu_lines, i, s.t), to_seconds(s.t - prev),
-                                       format_seconds(s.t), static_cast<long long>(missing), options.max_imu_dropout));
+                           fmt::format("{}: IMU gap of {:.3f} s before t = {} s (~{:.0f} samples missing, more than {})",
+                                       imu_location(imu_where, imu_lines, i, s.t), gap_s, format_seconds(s.t),
+                                       missing, options.max_imu_dropout));
           // Nothing to drop for a gap: the sample after it is kept.
         }
       }
@@ -218,17 +263,17 @@ std::optional<Measurement> IndexedSource::next() {
     frame.t = e.t;
     frame.camera = e.camera;
     frame.path = e.path;
-    frame.image = read_grey_image(e.path);
+    std::string why;
+    frame.image = read_grey_image(e.path, &why);
     if (frame.image.empty()) {
       const bool missing = !fs::exists(e.path);
       reporter_.report(missing ? &SourceStats::missing_images : &SourceStats::undecodable_images,
-                       fmt::format("{}: image {} {}", e.listed_at, e.path,
-                                   missing ? "not found" : "cannot be decoded (truncated or not an image)"),
-                       true);
+                       fmt::format("{}: image {} {}", e.listed_at, e.path, missing ? "not found" : why), true);
       continue;
     }
     const auto c = static_cast<std::size_t>(e.camera);
-    if (c < image_sizes_.size() && image_sizes_[c].area() > 0 && frame.image.size() != image_sizes_[c]) {
+    const bool checked = c < image_sizes_.size() && image_sizes_[c].width > 0 && image_sizes_[c].height > 0;
+    if (checked && frame.image.size() != image_sizes_[c]) {
       reporter_.report(&SourceStats::wrong_size_images,
                        fmt::format("{}: image {} is {}x{}, the calibration of camera {} says {}x{}", e.listed_at,
                                    e.path, frame.image.cols, frame.image.rows, e.camera, image_sizes_[c].width,
@@ -318,7 +363,7 @@ std::optional<Measurement> VideoSource::next() {
       frame.image = raw;
     }
     if (frame.image.depth() != CV_8U) frame.image.convertTo(frame.image, CV_8U);
-    if (expected_size_.area() > 0 && frame.image.size() != expected_size_) {
+    if (expected_size_.width > 0 && expected_size_.height > 0 && frame.image.size() != expected_size_) {
       reporter_.report(&SourceStats::wrong_size_images,
                        fmt::format("{}: frame is {}x{}, the calibration says {}x{}", frame.path, frame.image.cols,
                                    frame.image.rows, expected_size_.width, expected_size_.height));

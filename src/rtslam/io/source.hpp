@@ -188,7 +188,15 @@ class VideoSource : public Source {
   std::optional<std::size_t> frame_count_;
 };
 
-/// Reads an image file as 8-bit grey; an empty Mat if it is missing or cannot be decoded.
-cv::Mat read_grey_image(const std::string& path);
+/// Decodes an encoded image to 8-bit grey with OpenCV's imdecode (colour converted with OpenCV's weights). Only the
+/// formats the readers accept are decoded — PNG, PNM (PBM/PGM/PPM), JPEG, BMP, TIFF — and only up to the size limits
+/// of image_header.hpp, checked on the header before anything is allocated. Returns an empty Mat if the bytes are
+/// not such an image or cannot be decoded; `why` (if given) then says which ("cannot be decoded: ...").
+/// This is the decode path of every image reader (read_grey_image).
+cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why = nullptr);
+
+/// Reads an image file and decodes it with decode_grey_image; an empty Mat if it is missing or cannot be decoded
+/// (`why` says which).
+cv::Mat read_grey_image(const std::string& path, std::string* why = nullptr);
 
 }  // namespace rtslam::io

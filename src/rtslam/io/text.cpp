@@ -103,7 +103,11 @@ bool parse_seconds(std::string_view s, TimeNs& t) {
     }
   }
   for (; digits < 9; ++digits) frac *= 10;
-  const std::int64_t ns = whole * kNsPerSecond + frac + (round_up ? 1 : 0);
+  // Up to 10 integer digits fit the parse but not always int64 ns (max ~9.22e9 s): out of range is not a time.
+  std::int64_t ns = 0;
+  if (__builtin_mul_overflow(whole, kNsPerSecond, &ns) || __builtin_add_overflow(ns, frac + (round_up ? 1 : 0), &ns)) {
+    return false;
+  }
   t = negative ? -ns : ns;
   return true;
 }

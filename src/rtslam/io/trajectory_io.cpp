@@ -113,7 +113,8 @@ Trajectory read_kitti(const std::string& path) {
     StampedPose pose;
     pose.t = static_cast<TimeNs>(traj.poses.size());
     pose.p_WR = t;
-    pose.q_WR = Eigen::Quaterniond(R);
+    // The nearest unit quaternion: R is orthonormal only to 1e-3, and Eigen's conversion keeps its scale.
+    pose.q_WR = Eigen::Quaterniond(R).normalized();
     traj.poses.push_back(pose);
   }
   return traj;
@@ -345,7 +346,8 @@ void write_trajectory_csv(const std::string& path, const Trajectory& trajectory)
 void write_kitti(const std::string& path, const Trajectory& trajectory) {
   auto out = open_for_writing(path);
   for (const auto& p : trajectory.poses) {
-    const Eigen::Matrix3d R = p.q_WR.toRotationMatrix();
+    // Quaternions are kept as read (norm within 1e-2 of 1); the matrix of a non-unit one is not a rotation.
+    const Eigen::Matrix3d R = p.q_WR.normalized().toRotationMatrix();
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 3; ++c) out << format_double(R(r, c)) << ' ';
       out << format_double(p.p_WR[r]) << (r == 2 ? '\n' : ' ');

@@ -11,6 +11,7 @@
 //  - Kitti: 12 numbers per line, the 3x4 row-major [R|t]; no timestamps (has_timestamps = false, t = index).
 // Quaternions are stored exactly as read (not renormalized, so that files round-trip bit-identically); readers
 // reject a quaternion whose norm is off by more than 1e-2 and a KITTI rotation that is not orthonormal (1e-3).
+// KITTI rotations are read as the nearest unit quaternion, and written from the normalized quaternion.
 // Errors (IoError for unreadable/malformed files, DataError for bad values) name the file and the line.
 #include <string>
 

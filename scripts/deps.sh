@@ -2,7 +2,7 @@
 # Installs the Debian packages rtslam needs to build, test and report (idempotent; run as root).
 set -euo pipefail
 packages=(
-  cmake g++ ninja-build pkg-config
+  cmake g++ ninja-build pkg-config ccache
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
   clang libfuzzer-14-dev libclang-rt-14-dev

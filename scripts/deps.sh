@@ -5,6 +5,7 @@ packages=(
   cmake g++ ninja-build pkg-config
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
+  libcivetweb-dev nodejs
 )
 missing=()
 for p in "${packages[@]}"; do
@@ -15,4 +16,12 @@ if ((${#missing[@]})); then
   export DEBIAN_FRONTEND=noninteractive
   apt-get update -qq
   apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+# npm (the viewer's three.js and the browser tests' playwright-core, web/package-lock.json): Node.js builds that
+# bundle it (e.g. NodeSource's) need nothing more; Debian's nodejs needs Debian's npm.
+if ! command -v npm >/dev/null 2>&1; then
+  echo "deps: installing npm"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends npm >/dev/null
 fi

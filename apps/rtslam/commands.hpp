@@ -16,5 +16,6 @@ void register_eval(CLI::App& app);
 void register_batch(CLI::App& app);
 void register_report(CLI::App& app);
 void register_bench(CLI::App& app);
+void register_view(CLI::App& app);
 
 }  // namespace rtslam::cli

@@ -61,7 +61,11 @@ TEST(PipelineOverlays, OnePngPerProcessedFrameWithTheEllipsesOfAKnownLandmark) {
     EXPECT_EQ(r.landmarks.size(), f.map->landmarks().size());
     EXPECT_EQ(r.matches.size(), f.matches->size());
     EXPECT_EQ(r.image.size(), tap.last_.size());
-    EXPECT_NE(r.image.data, tap.last_.data) << "the report owns a copy of the image";
+    EXPECT_EQ(r.image.data, tap.last_.data) << "the report shares the source's image (no pixel copy)";
+    const cv::Mat foreign(tap.last_.rows, tap.last_.cols, CV_8UC1, tap.last_.data, tap.last_.step);
+    const viz::FrameReport copied = viz::make_report(f, foreign);
+    EXPECT_NE(copied.image.data, tap.last_.data) << "an image over foreign memory is copied";
+    EXPECT_EQ(cv::norm(copied.image, tap.last_, cv::NORM_INF), 0.0);
     EXPECT_EQ(r.camera.width, tap.last_.cols);
     writer.write(r);
     for (const auto& m : r.matches) {

@@ -11,7 +11,8 @@ FrameReport make_report(int index, TimeNs t, const slam::Map& map, const std::ve
   FrameReport r;
   r.index = index;
   r.t = t;
-  if (!grey.empty()) grey.copyTo(r.image);
+  // Share the pixels when the Mat owns them (reference counted: the report keeps them alive), else copy.
+  if (!grey.empty()) r.image = grey.u != nullptr ? grey : grey.clone();
   const filter::State& state = map.state();
   const Eigen::VectorXd& mean = state.mean_vector();
   if (!map.robots().empty()) {

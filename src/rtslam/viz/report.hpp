@@ -5,10 +5,11 @@
 //   const viz::FrameReport r = viz::make_report(frame, image, &stats);  // frame: pipeline::ImageSlamFrame
 //   viewer.push(r);  overlays.write(r);  video.write(r);
 //
-// make_report copies what it needs (the grey image, the robot and camera poses with the pose covariance, every
-// landmark's position and 3x3 position covariance in W, the data manager's FrameMatch list), so the report
-// outlives the frame and can go to another thread. It costs a copy of the image and O(landmarks) small matrix
-// products: measured in docs/viewer.md. Everything else (drawing, encoding, JSON) happens on the consumer's side.
+// make_report copies what it needs (the robot and camera poses with the pose covariance, every landmark's position
+// and 3x3 position covariance in W, the data manager's FrameMatch list) and shares the grey image (cv::Mat reference
+// counting: no pixel copy; an image over foreign memory is copied), so the report outlives the frame, can go to
+// another thread, and is cheap to copy. It costs O(landmarks) small matrix products: measured in docs/viewer.md.
+// Everything else (drawing, encoding, JSON) happens on the consumer's side.
 #include <optional>
 #include <vector>
 
@@ -51,7 +52,7 @@ struct CameraInfo {
 struct FrameReport {
   int index = 0;    // processed images before this one
   TimeNs t = 0;     // image time (in the filter's clock)
-  cv::Mat image;    // CV_8UC1, this report's own copy (empty: none)
+  cv::Mat image;    // CV_8UC1 (empty: none); shares the caller's pixels (see make_report): never write into it
   math::Pose T_WR;  // robot pose
   Eigen::Matrix<double, 6, 6> cov_pose = Eigen::Matrix<double, 6, 6>::Zero();  // [δp δθ] of T_WR (filter convention)
   math::Pose T_WS;  // camera pose (T_WR T_RS)
@@ -65,8 +66,10 @@ struct FrameReport {
 };
 
 /// The report of one image. `map` must hold a robot with a sensor (the first of each is used); `matches` is the data
-/// manager's list for this image; `grey` is copied (CV_8UC1, may be empty); `stats` (optional) gives the stage
-/// timings and counts; `grid` (optional) the init grid's cells. Never throws on the per-frame path.
+/// manager's list for this image; `grey` (CV_8UC1, may be empty) is shared when it owns its pixels — the caller
+/// must not write into them afterwards (rtslam's sources give every image its own cv::Mat) — and copied when it
+/// wraps foreign memory; `stats` (optional) gives the stage timings and counts; `grid` (optional) the init grid's
+/// cells. Never throws on the per-frame path.
 FrameReport make_report(int index, TimeNs t, const slam::Map& map, const std::vector<FrameMatch>& matches,
                         const cv::Mat& grey, const slam::FrameStats* stats = nullptr,
                         const strategies::InitGrid* grid = nullptr);

@@ -1,6 +1,6 @@
 // Browser tests of the web viewer (docs/viewer.md), driven by playwright-core in Debian's headless Chromium.
 //
-//   node browser_test.mjs live   --live-run BIN --node-modules DIR --out DIR [--chromium PATH]
+//   node browser_test.mjs live   --live-run BIN --node-modules DIR --out DIR [--chromium PATH] [--duration S] [--seed N]
 //   node browser_test.mjs replay --live-run BIN --cli BIN --node-modules DIR --out DIR [--chromium PATH]
 //
 // live:   starts BIN (viz_live_run: a 4 s simulated run feeding the viewer, the stand-in for `rtslam run --view`),
@@ -103,7 +103,8 @@ const overlayPixels = (page) => page.evaluate(() => {
 });
 
 async function liveTest() {
-  const run = start(args['live-run'], ['--duration', '4', '--seed', '1', '--view', '127.0.0.1:0', '--wait-client', '60', '--hold']);
+  const run = start(args['live-run'], ['--duration', args.duration || '4', '--seed', args.seed || '1', '--view', '127.0.0.1:0',
+    '--wait-client', '60', '--hold']);
   let browser;
   try {
     const urlLine = await until('the viewer URL', () => lineWith(run, 'viewer: '), 60000);
@@ -141,7 +142,8 @@ async function liveTest() {
       `the image shows the scene with its overlay (${px.nonBlack}/${px.total} lit, ${px.coloured} overlay-coloured pixels)`);
     await sleep(500); // let the last render and plots settle
     const shot = path.join(args.out, 'viewer_live.png');
-    await page.screenshot({ path: shot, fullPage: true });
+    const bottom = await page.evaluate(() => Math.ceil(document.getElementById('plots').getBoundingClientRect().bottom));
+    await page.screenshot({ path: shot, clip: { x: 0, y: 0, width: 1500, height: Math.min(1000, bottom) } });
     check(fs.statSync(shot).size > 20000, `screenshot saved: ${shot}`);
     console.log(`live: ${frames} frames, ${landmarks} landmarks; push median ${kv.push_median_us} us (max ${kv.push_max_us}), make_report median ${kv.make_report_median_us} us; dropped ${kv.dropped}`);
   } finally {

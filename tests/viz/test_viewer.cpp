@@ -15,6 +15,8 @@
 #include <nlohmann/json.hpp>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/eval/associate.hpp"
+#include "rtslam/eval/nees.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
 #include "rtslam/viz/assets.hpp"
@@ -323,7 +325,8 @@ fs::path write_run_folder() {
     est.poses.push_back(p);
     StampedPose g = p;
     g.cov.reset();
-    g.p_WR.x() += 0.001;
+    g.p_WR += Eigen::Vector3d(0.001 * std::sin(i), 0.002 * std::cos(0.7 * i), 0.0005 * i);  // errors that vary
+    g.q_WR = Eigen::Quaterniond(Eigen::AngleAxisd(0.003 * std::sin(0.5 * i), Eigen::Vector3d(0.3, 0.5, 0.8).normalized()));
     gt.poses.push_back(g);
     io::FrameStats f;
     f.t = p.t;
@@ -366,6 +369,19 @@ TEST(Replay, ReadsARunFolderWithItsOverlays) {
   EXPECT_FALSE(rec.map_types_known);
   ASSERT_EQ(rec.overlays.size(), 20u);
   EXPECT_EQ(rec.camera.width, 160);
+}
+
+TEST(Replay, ThePoseNeesIsEvalsDefinition) {
+  const fs::path dir = write_run_folder();
+  const RunRecording rec = load_run(dir.string());
+  const auto [est, gt] = eval::associate(io::read_trajectory((dir / "trajectory.csv").string()),
+                                         io::read_trajectory((dir / "groundtruth.txt").string()));
+  const eval::NeesSeries ref = eval::compute_nees(est, gt);
+  ASSERT_EQ(ref.nees.size(), rec.history.size());
+  for (std::size_t i = 0; i < ref.nees.size(); ++i) {
+    EXPECT_NEAR(rec.history[i].nees, ref.nees[i], 1e-9 * (1.0 + ref.nees[i])) << "pose " << i;
+  }
+  EXPECT_GT(ref.nees.back(), 0.1) << "a non-trivial check";
 }
 
 TEST(Replay, AFolderWithoutATrajectoryIsNamed) {

@@ -166,7 +166,7 @@ $('play').addEventListener('click', () => {
   };
   step();
 });
-$('fit').addEventListener('click', () => scene && scene.fit());
+$('fit').addEventListener('click', () => { if (scene) { scene.userMoved = false; scene.fit(); } });
 
 // ---- messages ---------------------------------------------------------------------------------------------------
 let pendingFrame = null; // frame message waiting for its JPEG

@@ -48,6 +48,10 @@ export class SceneView {
     this.camera.position.set(6, -6, 5);
     this.controls = new OrbitControls(this.camera, this.renderer.domElement);
     this.controls.addEventListener('change', () => this.requestRender());
+    // The view follows the map (refitted every 3 s) until the user moves it; "fit" refits once.
+    this.userMoved = false;
+    this.lastFit = 0;
+    this.controls.addEventListener('start', () => { this.userMoved = true; });
     this.renders = 0;
     this.landmarksShown = 0;
     this.fitted = false;
@@ -142,7 +146,7 @@ export class SceneView {
     this.axes.geometry.setDrawRange(0, 6 * n);
     this.points.geometry.computeBoundingSphere();
     this.landmarksShown = n;
-    if (!this.fitted && n >= 10) this.fit();
+    if (n >= 10 && !this.userMoved && performance.now() - this.lastFit > 3000) this.fit();
     this.requestRender();
   }
 
@@ -240,6 +244,7 @@ export class SceneView {
     this.camera.updateProjectionMatrix();
     this.controls.update();
     this.fitted = true;
+    this.lastFit = performance.now();
     this.requestRender();
   }
 }

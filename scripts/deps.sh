@@ -5,8 +5,9 @@ packages=(
   cmake g++ ninja-build pkg-config ccache
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
-  clang libfuzzer-14-dev libclang-rt-14-dev
+  libcivetweb-dev nodejs npm
 )
+packages+=("$@")  # extra packages a script needs (scripts/fuzz.sh: clang and libFuzzer)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -16,4 +17,12 @@ if ((${#missing[@]})); then
   export DEBIAN_FRONTEND=noninteractive
   apt-get update -qq
   apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+# npm (the viewer's three.js and the browser tests' playwright-core, web/package-lock.json): Node.js builds that
+# bundle it (e.g. NodeSource's) need nothing more; Debian's nodejs needs Debian's npm.
+if ! command -v npm >/dev/null 2>&1; then
+  echo "deps: installing npm"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends npm >/dev/null
 fi

@@ -17,5 +17,6 @@ void register_batch(CLI::App& app);
 void register_report(CLI::App& app);
 void register_bench(CLI::App& app);
 void register_imu_noise(CLI::App& app);
+void register_view(CLI::App& app);
 
 }  // namespace rtslam::cli

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   rtslam::cli::register_report(app);
   rtslam::cli::register_bench(app);
   rtslam::cli::register_imu_noise(app);
+  rtslam::cli::register_view(app);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,426 @@
+// The viewer's server on loopback: the page and its assets over HTTP, frames over WebSocket (JSON + JPEG), the
+// history for late clients, slow clients, the Origin check, addresses, and the replay of a run folder.
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <civetweb.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/eval/associate.hpp"
+#include "rtslam/eval/nees.hpp"
+#include "rtslam/io/trajectory_io.hpp"
+#include "rtslam/io/writers.hpp"
+#include "rtslam/viz/assets.hpp"
+#include "rtslam/viz/replay.hpp"
+#include "rtslam/viz/viewer.hpp"
+#include "viz/viz_test_utils.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace rtslam;
+using namespace rtslam::viz;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+struct HttpResponse {
+  int status = 0;
+  std::string content_type;
+  std::string body;
+};
+
+HttpResponse http_get(int port, const std::string& path) {
+  char err[256] = {};
+  HttpResponse r;
+  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err, "GET %s HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n",
+                                 path.c_str());
+  if (c == nullptr) {
+    ADD_FAILURE() << "GET " << path << ": " << err;
+    return r;
+  }
+  const mg_response_info* ri = mg_get_response_info(c);
+  r.status = ri->status_code;
+  for (int i = 0; i < ri->num_headers; ++i) {
+    if (strcasecmp(ri->http_headers[i].name, "Content-Type") == 0) r.content_type = ri->http_headers[i].value;
+  }
+  char buf[65536];
+  int n = 0;
+  while ((n = mg_read(c, buf, sizeof buf)) > 0) r.body.append(buf, static_cast<std::size_t>(n));
+  mg_close_connection(c);
+  return r;
+}
+
+// A WebSocket client (CivetWeb's) that records every message.
+class WsClient {
+ public:
+  WsClient(int port, const char* origin = nullptr) {
+    char err[256] = {};
+    const std::string o = origin ? origin : "http://127.0.0.1:" + std::to_string(port);
+    conn_ = mg_connect_websocket_client("127.0.0.1", port, 0, err, sizeof err, "/ws", o.c_str(), &WsClient::on_data,
+                                        &WsClient::on_close, this);
+    error_ = err;
+  }
+  ~WsClient() {
+    if (conn_ != nullptr) mg_close_connection(conn_);
+  }
+  bool connected() const { return conn_ != nullptr; }
+  const std::string& error() const { return error_; }
+  void send(const std::string& text) {
+    mg_websocket_client_write(conn_, MG_WEBSOCKET_OPCODE_TEXT, text.data(), text.size());
+  }
+  // Waits until `pred(messages)` holds or the timeout passes.
+  template <class Pred>
+  bool wait_for(Pred pred, std::chrono::seconds timeout = 20s) {
+    std::unique_lock<std::mutex> lock(mu_);
+    return cv_.wait_for(lock, timeout, [&] { return pred(messages_) || closed_; }) && pred(messages_);
+  }
+  struct Message {
+    bool binary = false;
+    std::string data;
+    json as_json() const { return json::parse(data); }
+  };
+  std::vector<Message> messages() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return messages_;
+  }
+  bool closed() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return closed_;
+  }
+  static std::size_t count_type(const std::vector<Message>& ms, const std::string& type) {
+    std::size_t n = 0;
+    for (const auto& m : ms) n += !m.binary && m.as_json().value("type", "") == type ? 1 : 0;
+    return n;
+  }
+
+ private:
+  static int on_data(mg_connection*, int bits, char* data, std::size_t len, void* user) {
+    auto* self = static_cast<WsClient*>(user);
+    const int opcode = bits & 0xf;
+    if (opcode != MG_WEBSOCKET_OPCODE_TEXT && opcode != MG_WEBSOCKET_OPCODE_BINARY) return 1;
+    {
+      std::lock_guard<std::mutex> lock(self->mu_);
+      self->messages_.push_back({opcode == MG_WEBSOCKET_OPCODE_BINARY, std::string(data, len)});
+    }
+    self->cv_.notify_all();
+    return 1;
+  }
+  static void on_close(const mg_connection*, void* user) {
+    auto* self = static_cast<WsClient*>(user);
+    {
+      std::lock_guard<std::mutex> lock(self->mu_);
+      self->closed_ = true;
+    }
+    self->cv_.notify_all();
+  }
+  mg_connection* conn_ = nullptr;
+  std::string error_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<Message> messages_;
+  bool closed_ = false;
+};
+
+FrameReport frame(int index, int landmarks = 5) {
+  FrameReport r = test::blank_report(160, 120);
+  r.index = index;
+  r.t = 1'000'000'000 + index * 50'000'000LL;
+  r.T_WR.p = Eigen::Vector3d(0.01 * index, 0, 0);
+  r.T_WS = r.T_WR;
+  r.cov_pose = Eigen::Matrix<double, 6, 6>::Identity() * 1e-4;
+  for (int i = 0; i < landmarks; ++i) {
+    LandmarkReport l;
+    l.id = i;
+    l.euclidean = i % 2 == 0;
+    l.p_W = Eigen::Vector3d(i, 1, 2);
+    l.cov_W = Eigen::Vector3d(0.04, 0.01, 0.0025).asDiagonal();  // σ 0.2, 0.1, 0.05 m
+    r.landmarks.push_back(l);
+  }
+  FrameMatch m;
+  m.landmark_id = 0;
+  m.h = Eigen::Vector2d(80, 60);
+  m.S = test::covariance(5, 3, 0.2);
+  m.z = Eigen::Vector2d(81, 60.5);
+  m.searched = m.matched = m.updated = m.ransac_inlier = true;
+  r.matches.push_back(m);
+  r.stats.visible = r.stats.searched = r.stats.matched = r.stats.updated = 1;
+  return r;
+}
+
+ViewerOptions loopback() {
+  ViewerOptions o;
+  o.address = "127.0.0.1:0";
+  o.max_fps = 200.0;
+  return o;
+}
+
+TEST(Viewer, ServesThePageAndItsAssetsOnLoopback) {
+  Viewer v(loopback());
+  ASSERT_GT(v.port(), 0);
+  EXPECT_EQ(v.url(), "http://127.0.0.1:" + std::to_string(v.port()) + "/");
+  const HttpResponse page = http_get(v.port(), "/");
+  EXPECT_EQ(page.status, 200);
+  EXPECT_NE(page.content_type.find("text/html"), std::string::npos);
+  EXPECT_NE(page.body.find("rtslam viewer"), std::string::npos);
+  const HttpResponse js = http_get(v.port(), "/js/main.js");
+  EXPECT_EQ(js.status, 200);
+  EXPECT_NE(js.content_type.find("javascript"), std::string::npos);
+  EXPECT_EQ(js.body.size(), find_asset("/js/main.js")->size);
+  if (three_js_bundled()) {
+    const HttpResponse three = http_get(v.port(), "/vendor/three/three.module.js");
+    EXPECT_EQ(three.status, 200);
+    EXPECT_GT(three.body.size(), 100000u);
+    EXPECT_NE(three.body.find("Three.js Authors"), std::string::npos);
+  }
+  EXPECT_EQ(http_get(v.port(), "/no/such/file").status, 404);
+  const HttpResponse status = http_get(v.port(), "/api/status");
+  EXPECT_EQ(status.status, 200);
+  EXPECT_EQ(json::parse(status.body)["mode"], "live");
+}
+
+TEST(Viewer, AWebSocketClientReceivesAFrameWithItsJpeg) {
+  Viewer v(loopback());
+  WsClient ws(v.port());
+  ASSERT_TRUE(ws.connected()) << ws.error();
+  ASSERT_TRUE(ws.wait_for([](const auto& ms) { return WsClient::count_type(ms, "hello") == 1; }));
+  v.push(frame(0, 7));
+  ASSERT_TRUE(ws.wait_for([](const auto& ms) { return !ms.empty() && ms.back().binary; }));
+  const auto ms = ws.messages();
+  const json hello = ms.front().as_json();
+  EXPECT_EQ(hello["mode"], "live");
+  EXPECT_EQ(hello["three"], three_js_bundled());
+  // history (the frame's record), then the frame, then its JPEG.
+  const auto& img = ms.back();
+  const json f = ms[ms.size() - 2].as_json();
+  EXPECT_EQ(f["type"], "frame");
+  EXPECT_EQ(f["i"], 0);
+  EXPECT_EQ(f["landmarks"].size(), 7u);
+  EXPECT_EQ(f["landmarks"][0][1], 1) << "landmark 0 is Euclidean";
+  EXPECT_EQ(f["landmarks"][1][1], 0) << "landmark 1 is AHP";
+  EXPECT_EQ(f["landmarks"][0][14], 3) << "landmark 0 was matched and updated";
+  EXPECT_NEAR(std::abs(f["landmarks"][0][5].get<double>()), 0.6, 1e-9) << "longest 3σ half-axis (σ = 0.2 m along x)";
+  EXPECT_EQ(f["image"], img.data.size());
+  ASSERT_GT(img.data.size(), 4u);
+  EXPECT_EQ(static_cast<unsigned char>(img.data[0]), 0xFF);
+  EXPECT_EQ(static_cast<unsigned char>(img.data[1]), 0xD8) << "a JPEG";
+  EXPECT_EQ(WsClient::count_type(ms, "history"), 1u);
+  v.stop();
+  EXPECT_TRUE(ws.wait_for([](const auto&) { return false; }, 5s) || ws.closed()) << "stop() closes the connection";
+}
+
+TEST(Viewer, ALateClientGetsTheWholeHistoryAndTheLatestFrame) {
+  Viewer v(loopback());
+  for (int i = 0; i < 50; ++i) v.push(frame(i));
+  v.finish();
+  // Let the viewer thread take them in (it polls).
+  for (int k = 0; k < 200 && v.stats().processed == 0; ++k) std::this_thread::sleep_for(10ms);
+  WsClient ws(v.port());
+  ASSERT_TRUE(ws.connected()) << ws.error();
+  ASSERT_TRUE(ws.wait_for([](const auto& ms) { return WsClient::count_type(ms, "status") == 1; }));
+  std::size_t entries = 0;
+  int last_frame = -1;
+  for (const auto& m : ws.messages()) {
+    if (m.binary) continue;
+    const json j = m.as_json();
+    if (j["type"] == "history") entries += j["entries"].size();
+    if (j["type"] == "frame") last_frame = j["i"];
+  }
+  EXPECT_EQ(entries, 50u) << "every frame's record, dropped reports included";
+  EXPECT_EQ(last_frame, 49);
+  const ViewerStats s = v.stats();
+  EXPECT_EQ(s.pushed, 50);
+  EXPECT_EQ(s.dropped + s.processed, 50);
+}
+
+TEST(Viewer, PushNeverWaitsForABrowserThatDoesNotKeepUp) {
+  ViewerOptions o = loopback();
+  o.queue_frames = 2;
+  Viewer v(o);
+  WsClient ws(v.port());  // never acknowledges a frame: it gets two, then nothing until it does
+  ASSERT_TRUE(ws.connected()) << ws.error();
+  ASSERT_TRUE(ws.wait_for([](const auto& ms) { return WsClient::count_type(ms, "hello") == 1; }));
+  for (int i = 0; i < 2000; ++i) v.push(frame(i, 50));  // would hang if push waited for the browser
+  for (int k = 0; k < 300 && v.stats().frames_sent < 2; ++k) std::this_thread::sleep_for(10ms);
+  const ViewerStats s = v.stats();
+  EXPECT_EQ(s.pushed, 2000);
+  EXPECT_GT(s.dropped, 0) << "the viewer thread cannot have drawn 2000 frames";
+  EXPECT_LE(s.frames_sent, 3) << "frames wait for the page's acknowledgement";
+  // Acknowledging gets the newest frame.
+  ws.send("ack");
+  ws.send("ack");
+  ASSERT_TRUE(ws.wait_for([](const auto& ms) {
+    for (const auto& m : ms)
+      if (!m.binary && m.as_json().value("type", "") == "frame" && m.as_json()["i"] == 1999) return true;
+    return false;
+  }));
+}
+
+TEST(Viewer, AWebSocketFromAnotherOriginIsRefused) {
+  Viewer v(loopback());
+  WsClient ws(v.port(), "http://evil.example");
+  EXPECT_TRUE(!ws.connected() || ws.wait_for([](const auto&) { return false; }, 3s) || ws.closed());
+  EXPECT_EQ(v.stats().clients, 0);
+}
+
+TEST(Viewer, AddressesAreIpv4AndPortsAndBadOnesAreNamed) {
+  EXPECT_EQ(parse_address("127.0.0.1:8080"), std::make_pair(std::string("127.0.0.1"), 8080));
+  EXPECT_EQ(parse_address("9000"), std::make_pair(std::string("127.0.0.1"), 9000)) << "loopback by default";
+  EXPECT_EQ(parse_address("localhost:0"), std::make_pair(std::string("127.0.0.1"), 0));
+  EXPECT_EQ(parse_address("0.0.0.0:80").first, "0.0.0.0");
+  for (const char* bad : {"", "host:80", "127.0.0.1:", "127.0.0.1:70000", "[::1]:80", "1.2.3:4", "127.0.0.1:x"}) {
+    try {
+      parse_address(bad);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Viewer, APortInUseIsAnIoErrorNamingTheAddress) {
+  Viewer first(loopback());
+  ViewerOptions o;
+  o.address = "127.0.0.1:" + std::to_string(first.port());
+  try {
+    Viewer second(o);
+    FAIL() << "bound a port in use";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find(o.address), std::string::npos) << e.what();
+  }
+}
+
+TEST(Viewer, StopsCleanlyWithClientsConnectedAndTwice) {
+  auto v = std::make_unique<Viewer>(loopback());
+  WsClient a(v->port()), b(v->port());
+  ASSERT_TRUE(a.connected() && b.connected());
+  for (int i = 0; i < 20; ++i) v->push(frame(i));
+  v->stop();
+  v->stop();
+  v.reset();
+}
+
+// ---- replay ---------------------------------------------------------------------------------------------------
+
+fs::path write_run_folder() {
+  const fs::path dir = fs::temp_directory_path() / "rtslam_test_viz_run";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  Trajectory est, gt;
+  std::vector<io::FrameStats> rows;
+  OverlayWriter ov((dir / "overlays").string());
+  for (int i = 0; i < 20; ++i) {
+    StampedPose p;
+    p.t = 1'000'000'000 + i * 50'000'000LL;
+    p.p_WR = Eigen::Vector3d(0.1 * i, 0.02 * i * i, 0.0);
+    p.cov = Eigen::Matrix<double, 6, 6>::Identity() * 1e-4;
+    est.poses.push_back(p);
+    StampedPose g = p;
+    g.cov.reset();
+    g.p_WR += Eigen::Vector3d(0.001 * std::sin(i), 0.002 * std::cos(0.7 * i), 0.0005 * i);  // errors that vary
+    g.q_WR = Eigen::Quaterniond(Eigen::AngleAxisd(0.003 * std::sin(0.5 * i), Eigen::Vector3d(0.3, 0.5, 0.8).normalized()));
+    gt.poses.push_back(g);
+    io::FrameStats f;
+    f.t = p.t;
+    f.matched = 10 + i;
+    f.t_total_ms = 2.0;
+    rows.push_back(f);
+    FrameReport r = frame(i);
+    r.t = p.t;
+    ov.write(r);
+  }
+  ov.close();
+  io::write_trajectory_csv((dir / "trajectory.csv").string(), est);
+  io::write_tum((dir / "groundtruth.txt").string(), gt);
+  io::FramesCsvWriter fw((dir / "frames.csv").string());
+  for (const auto& f : rows) fw.write(f);
+  fw.close();
+  std::vector<io::MapPoint> pts(3);
+  for (int i = 0; i < 3; ++i) {
+    pts[static_cast<std::size_t>(i)].id = static_cast<std::uint64_t>(i);
+    pts[static_cast<std::size_t>(i)].p_W = Eigen::Vector3d(i, 0, 1);
+    pts[static_cast<std::size_t>(i)].cov = Eigen::Matrix3d::Identity() * 0.04;
+  }
+  io::write_map_ply((dir / "map.ply").string(), pts);
+  io::write_summary_json((dir / "summary.json").string(),
+                         {{"dataset", {{"name", "unit"}, {"kind", "test"}}}, {"seed", 4}, {"frames", 20}});
+  return dir;
+}
+
+TEST(Replay, ReadsARunFolderWithItsOverlays) {
+  const fs::path dir = write_run_folder();
+  const RunRecording rec = load_run(dir.string());
+  EXPECT_EQ(rec.title, "unit (test), seed 4");
+  ASSERT_EQ(rec.history.size(), 20u);
+  EXPECT_EQ(rec.history[3].stats.matched, 13) << "frames.csv joined by time";
+  EXPECT_TRUE(rec.history[3].has_timing);
+  EXPECT_EQ(rec.history[3].nis.count, 1) << "NIS from the overlay index";
+  EXPECT_TRUE(std::isfinite(rec.history[5].nees)) << "NEES against groundtruth.txt";
+  ASSERT_EQ(rec.map.size(), 3u);
+  EXPECT_NEAR(rec.map[1].cov_W(0, 0), 0.04, 1e-12);
+  EXPECT_FALSE(rec.map_types_known);
+  ASSERT_EQ(rec.overlays.size(), 20u);
+  EXPECT_EQ(rec.camera.width, 160);
+}
+
+TEST(Replay, ThePoseNeesIsEvalsDefinition) {
+  const fs::path dir = write_run_folder();
+  const RunRecording rec = load_run(dir.string());
+  const auto [est, gt] = eval::associate(io::read_trajectory((dir / "trajectory.csv").string()),
+                                         io::read_trajectory((dir / "groundtruth.txt").string()));
+  const eval::NeesSeries ref = eval::compute_nees(est, gt);
+  ASSERT_EQ(ref.nees.size(), rec.history.size());
+  for (std::size_t i = 0; i < ref.nees.size(); ++i) {
+    EXPECT_NEAR(rec.history[i].nees, ref.nees[i], 1e-9 * (1.0 + ref.nees[i])) << "pose " << i;
+  }
+  EXPECT_GT(ref.nees.back(), 0.1) << "a non-trivial check";
+}
+
+TEST(Replay, AFolderWithoutATrajectoryIsNamed) {
+  const fs::path dir = fs::temp_directory_path() / "rtslam_test_viz_empty";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  try {
+    load_run(dir.string());
+    FAIL();
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("trajectory.csv"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Replay, TheViewerServesTheRecordingAndItsOverlays) {
+  const fs::path dir = write_run_folder();
+  Viewer v(loopback());
+  v.show_recording(load_run(dir.string()));
+  WsClient ws(v.port());
+  ASSERT_TRUE(ws.connected()) << ws.error();
+  ASSERT_TRUE(ws.wait_for([](const auto& ms) { return WsClient::count_type(ms, "status") == 1; }));
+  const auto ms = ws.messages();
+  const json hello = ms.front().as_json();
+  EXPECT_EQ(hello["mode"], "replay");
+  EXPECT_EQ(hello["overlays"].size(), 20u);
+  EXPECT_EQ(WsClient::count_type(ms, "align"), 1u) << "the ground truth's alignment";
+  std::size_t landmarks = 0, entries = 0;
+  for (const auto& m : ms) {
+    const json j = m.as_json();
+    if (j["type"] == "frame") landmarks = j["landmarks"].size();
+    if (j["type"] == "history") entries += j["entries"].size();
+  }
+  EXPECT_EQ(landmarks, 3u);
+  EXPECT_EQ(entries, 20u);
+  const HttpResponse png = http_get(v.port(), "/api/overlay/4");
+  EXPECT_EQ(png.status, 200);
+  EXPECT_EQ(png.content_type, "image/png");
+  EXPECT_EQ(png.body.substr(1, 3), "PNG");
+  EXPECT_EQ(http_get(v.port(), "/api/overlay/99").status, 404);
+}
+
+}  // namespace

@@ -5,8 +5,10 @@ packages=(
   cmake g++ ninja-build pkg-config ccache
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
-  libcivetweb-dev nodejs npm
+  libcivetweb-dev nodejs
 )
+# npm fetches the viewer's three.js at build time; Debian's nodejs lacks it, NodeSource's ships it.
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 packages+=("$@")  # extra packages a script needs (scripts/fuzz.sh: clang and libFuzzer)
 missing=()
 for p in "${packages[@]}"; do

@@ -5,6 +5,8 @@ packages=(
   cmake g++ ninja-build pkg-config
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
+  # ROS1 (optional at build time, RTSLAM_WITH_ROS; docs/ros.md): bags, the rtslam_ros node, rosmaster for its test
+  librosbag-storage-dev libroscpp-dev libsensor-msgs-dev libnav-msgs-dev libtf2-msgs-dev python3-rosmaster
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -74,6 +74,10 @@ bool wait_for_port(int port, double timeout_s) {
 class Child {
  public:
   Child(const std::vector<std::string>& argv, const std::string& log) : log_(log) {
+    // Everything the child needs is prepared before fork(): between fork and exec only async-signal-safe calls.
+    std::vector<char*> args;
+    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
     pid_ = ::fork();
     if (pid_ == 0) {
       const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
@@ -82,9 +86,6 @@ class Child {
         ::dup2(fd, STDERR_FILENO);
         ::close(fd);
       }
-      std::vector<char*> args;
-      for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
       ::execv(args[0], args.data());
       ::_exit(127);
     }

@@ -10,11 +10,11 @@
 //    (DatasetOptions::imu_topic, default /imu0; read when DatasetOptions::use_imu) of type sensor_msgs/Imu. A
 //    missing image topic is an IoError that lists the bag's topics; a missing IMU topic is a warning (no IMU stream).
 //  - Time: the messages' header stamps (default), or the bag's receive times (DatasetOptions::bag_receive_time).
-//  - Order and checks: the bag is indexed when it is opened. Per topic, in the bag's order, stamps must increase
-//    strictly (backwards and duplicate stamps), IMU values must be finite, IMU dropouts longer than
-//    max_imu_dropout samples are reported (the rate from the calibration, else the median interval), and raw images
-//    must have a supported encoding, a consistent buffer and the calibration's size; compressed images are decoded,
-//    and checked, when the stream reaches them. The policy is DatasetOptions::bad_input, as for every reader
+//  - Order and checks: the bag is indexed when it is opened. Per topic, in the bag's order (its receive times),
+//    stamps must increase strictly (backwards and duplicate stamps), IMU values must be finite, IMU dropouts longer
+//    than max_imu_dropout samples are reported (the rate from the calibration, else the median interval), and raw
+//    images must have a supported encoding, a consistent buffer and the calibration's size; compressed images are
+//    decoded, and checked, when the stream reaches them. The policy is DatasetOptions::bad_input, as for every reader
 //    (source.hpp): stop with an error naming the bag, topic, message index and stamp, or skip and count in
 //    SourceStats. The streams are then merged by time, IMU first at equal times, then by camera.
 //  - Images become 8-bit grey (grey_from_ros_image).

@@ -95,8 +95,19 @@ RosTestClient::~RosTestClient() {
   ros::shutdown();
 }
 
-bool RosTestClient::wait_for_image_subscribers(std::size_t n, double timeout_s) {
-  return poll(timeout_s, [&] { return impl_->image_pub.getNumSubscribers() >= n; });
+bool RosTestClient::wait_for_subscribers(std::size_t n, bool imu, double timeout_s) {
+  return poll(timeout_s, [&] {
+    return impl_->image_pub.getNumSubscribers() >= n && (!imu || impl_->imu_pub.getNumSubscribers() >= n);
+  });
+}
+
+void RosTestClient::clear() {
+  std::lock_guard lock(impl_->mutex);
+  impl_->odometry.clear();
+  impl_->transforms.clear();
+  impl_->map_messages = 0;
+  impl_->last_map_points = 0;
+  impl_->last_map_fields.clear();
 }
 
 void RosTestClient::publish(const io::Measurement& m) {

@@ -41,8 +41,10 @@ class RosTestClient {
   RosTestClient(const RosTestClient&) = delete;
   RosTestClient& operator=(const RosTestClient&) = delete;
 
-  /// True once the image topic has `n` subscribers (polls until `timeout_s`).
-  bool wait_for_image_subscribers(std::size_t n, double timeout_s);
+  /// True once the image topic (and, with `imu`, the IMU topic) has `n` subscribers (polls until `timeout_s`).
+  bool wait_for_subscribers(std::size_t n, bool imu, double timeout_s);
+  /// Forgets what was received.
+  void clear();
   /// Publishes an image (mono8) or an IMU sample.
   void publish(const io::Measurement& m);
   /// True once `n` odometry messages arrived (polls until `timeout_s`).

@@ -1,9 +1,10 @@
-// rtslam_ros against a ROS master on loopback: the test starts `rosmaster` on 127.0.0.1 at a free port
-// (ROS_MASTER_URI / ROS_IP on loopback, ROS_HOME in a temporary folder), starts the node as a process with a
-// calibration and a configuration, publishes a few seconds of the simulator's images, and checks what the node
-// publishes: one nav_msgs/Odometry per image with the same poses as the pipeline run in this process on the same
-// images (bit for bit), the world -> robot and robot -> camera transforms on /tf, and the map as PointCloud2. Then it
-// stops the node with SIGINT (exit code 0, trajectory written). Skipped with a message without ROS or rosmaster.
+// rtslam_ros against a ROS master on loopback: the suite starts `rosmaster` on 127.0.0.1 at a free port
+// (ROS_MASTER_URI / ROS_IP on loopback, ROS_HOME in a temporary folder); each test starts the node as a process with
+// a calibration and a configuration, publishes a few seconds of the simulator's images (and IMU samples for the
+// inertial configuration), and checks what the node publishes: one nav_msgs/Odometry per processed image with the
+// same poses as the pipeline run in this process on the same measurements (bit for bit), the world -> robot and
+// robot -> camera transforms on /tf, and the map as PointCloud2. Then it stops the node with SIGINT (exit code 0,
+// trajectory written). Skipped with a message without ROS or rosmaster.
 #include <gtest/gtest.h>
 
 #include <arpa/inet.h>
@@ -126,94 +127,140 @@ class Child {
   std::string log_;
 };
 
-TEST(RosNode, PublishesOdometryTfAndTheMapForEveryImage) {
-  const std::string rosmaster = RTSLAM_ROSMASTER;
-  if (!fs::exists(rosmaster)) GTEST_SKIP() << "rosmaster not found (" << rosmaster << "): scripts/deps.sh installs it";
-  io::test::TempDir dir;
-  const int port = free_port();
-  ASSERT_GT(port, 0);
-  // Loopback only, logs in the temporary folder. The children inherit the environment.
-  ::setenv("ROS_MASTER_URI", ("http://127.0.0.1:" + std::to_string(port)).c_str(), 1);
-  ::setenv("ROS_IP", "127.0.0.1", 1);
-  ::unsetenv("ROS_HOSTNAME");
-  ::setenv("ROS_HOME", dir.str().c_str(), 1);
-  ::setenv("ROS_LOG_DIR", dir.str().c_str(), 1);
-  Child master({rosmaster, "--core", "-p", std::to_string(port), "-w", "2"}, dir / "master.log");
-  ASSERT_TRUE(wait_for_port(port, 30.0)) << "rosmaster did not start:\n" << master.log();
+/// One ROS master on loopback for the suite, and the test's own node: roscpp connects a process to one master for
+/// its lifetime, so both live as long as the suite.
+class RosNode : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!fs::exists(RTSLAM_ROSMASTER)) return;
+    std::string dir = (fs::temp_directory_path() / "rtslam_ros_node_XXXXXX").string();
+    ASSERT_NE(::mkdtemp(dir.data()), nullptr);
+    dir_ = dir;
+    const int port = free_port();
+    ASSERT_GT(port, 0);
+    // Loopback only, logs in the temporary folder. The children (master, nodes) inherit the environment.
+    ::setenv("ROS_MASTER_URI", ("http://127.0.0.1:" + std::to_string(port)).c_str(), 1);
+    ::setenv("ROS_IP", "127.0.0.1", 1);
+    ::unsetenv("ROS_HOSTNAME");
+    ::setenv("ROS_HOME", dir_.c_str(), 1);
+    ::setenv("ROS_LOG_DIR", dir_.c_str(), 1);
+    master_ = new Child({RTSLAM_ROSMASTER, "--core", "-p", std::to_string(port), "-w", "2"}, dir_ + "/master.log");
+    ASSERT_TRUE(wait_for_port(port, 30.0)) << "rosmaster did not start:\n" << master_->log();
+    client_ = new ros_test::RosTestClient("rtslam_ros_test", "/cam0/image_raw", "/imu0", "/rtslam_ros/odom",
+                                          "/rtslam_ros/map");
+  }
+  static void TearDownTestSuite() {
+    delete client_;
+    delete master_;
+    client_ = nullptr;
+    master_ = nullptr;
+    if (!dir_.empty()) {
+      std::error_code ec;
+      fs::remove_all(dir_, ec);
+    }
+  }
+  void SetUp() override {
+    if (master_ == nullptr) {
+      GTEST_SKIP() << "rosmaster not found (" << RTSLAM_ROSMASTER << "): scripts/deps.sh installs it";
+    }
+    ASSERT_NE(client_, nullptr) << "the suite's ROS master did not start";
+    client_->clear();
+  }
 
-  // The sequence and the node's inputs: the monocular simulator configuration, its rig.
-  pipeline::ImageSlamOptions o = pipeline::load_image_slam_config(RTSLAM_SOURCE_DIR "/config/sim_mono.yaml");
-  o.sim_duration_s = 2.0;
-  io::Dataset sim = pipeline::make_sim_dataset(o);
-  io::write_rig_yaml(dir / "rig.yaml", sim.rig);
-  io::write_config_yaml(dir / "config.yaml", pipeline::to_yaml(o));
-  std::vector<io::Measurement> images;
-  while (auto m = sim.source->next()) {
-    if (std::holds_alternative<io::ImageFrame>(*m)) images.push_back(std::move(*m));
-  }
-  ASSERT_GT(images.size(), 30u);
+  /// Runs the node on `duration_s` of the simulator with the configuration `config`, publishing its images (and
+  /// IMU samples for inertial configurations) in time order at about twice the real rate, and checks what the node
+  /// publishes against the pipeline run in this process on the same measurements.
+  static void expect_node_matches_the_pipeline(const std::string& config, double duration_s) {
+    io::test::TempDir dir;
+    pipeline::ImageSlamOptions o = pipeline::load_image_slam_config(RTSLAM_SOURCE_DIR "/" + config);
+    o.sim_duration_s = duration_s;
+    const bool inertial = o.robot == "inertial";
+    io::Dataset sim = pipeline::make_sim_dataset(o);
+    io::write_rig_yaml(dir / "rig.yaml", sim.rig);
+    io::write_config_yaml(dir / "config.yaml", pipeline::to_yaml(o));
+    std::vector<io::Measurement> stream;
+    std::size_t n_images = 0;
+    while (auto m = sim.source->next()) {
+      const bool image = std::holds_alternative<io::ImageFrame>(*m);
+      n_images += image ? 1 : 0;
+      if (image || inertial) stream.push_back(std::move(*m));
+    }
 
-  Child node({RTSLAM_ROS_NODE, "__name:=rtslam_ros", "_calibration:=" + (dir / "rig.yaml"),
-              "_config:=" + (dir / "config.yaml"), "_trajectory:=" + (dir / "trajectory.txt"), "_camera_frame:=cam0",
-              "_queue_size:=1000"},
-             dir / "node.log");
-  ros_test::RosTestClient client("rtslam_ros_test", "/cam0/image_raw", "/imu0", "/rtslam_ros/odom",
-                                 "/rtslam_ros/map");
-  ASSERT_TRUE(client.wait_for_image_subscribers(1, 60.0)) << "the node did not subscribe:\n" << node.log();
-  for (const auto& m : images) {
-    client.publish(m);
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  ASSERT_TRUE(client.wait_for_odometry(images.size(), 120.0))
-      << client.odometry().size() << " odometry messages for " << images.size() << " images:\n"
-      << node.log();
-  EXPECT_EQ(node.stop(30.0), 0) << node.log();
+    Child node({RTSLAM_ROS_NODE, "__name:=rtslam_ros", "_calibration:=" + (dir / "rig.yaml"),
+                "_config:=" + (dir / "config.yaml"), "_trajectory:=" + (dir / "trajectory.txt"),
+                "_camera_frame:=cam0", "_queue_size:=1000"},
+               dir / "node.log");
+    ASSERT_TRUE(client_->wait_for_subscribers(1, inertial, 60.0)) << "the node did not subscribe:\n" << node.log();
+    TimeNs last_image = -1;
+    for (const auto& m : stream) {
+      if (std::holds_alternative<io::ImageFrame>(m)) {
+        if (last_image >= 0) std::this_thread::sleep_for(std::chrono::nanoseconds((io::time_of(m) - last_image) / 2));
+        last_image = io::time_of(m);
+      }
+      client_->publish(m);
+    }
 
-  // The same images through the pipeline here (no ground truth: the node starts at identity too).
-  io::Dataset ref = pipeline::make_sim_dataset(o);
-  ref.ground_truth.reset();
-  const pipeline::ImageSlamResult expected = pipeline::run_image_slam(ref, o);
-  const std::vector<ros_test::ReceivedOdometry> odom = client.odometry();
-  ASSERT_EQ(odom.size(), expected.estimate.poses.size());
-  for (std::size_t k = 0; k < odom.size(); ++k) {
-    const StampedPose& e = expected.estimate.poses[k];
-    EXPECT_EQ(odom[k].t, e.t) << "image " << k;
-    EXPECT_EQ(odom[k].frame_id, "world");
-    EXPECT_EQ(odom[k].child_frame_id, "base_link");
-    EXPECT_EQ(odom[k].p, e.p_WR) << "image " << k;
-    EXPECT_EQ(odom[k].q.coeffs(), e.q_WR.coeffs()) << "image " << k;
-    const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> cov(odom[k].pose_covariance.data());
-    EXPECT_TRUE(cov.isApprox(cov.transpose(), 0.0)) << "image " << k;
-    EXPECT_GE(cov.diagonal().minCoeff(), 0.0) << "image " << k;
+    // The same measurements through the pipeline here (no ground truth: the node has none either).
+    io::Dataset ref = pipeline::make_sim_dataset(o);
+    ref.ground_truth.reset();
+    const pipeline::ImageSlamResult expected = pipeline::run_image_slam(ref, o);
+    const std::size_t n = expected.estimate.poses.size();
+    ASSERT_GT(n, 20u);
+    EXPECT_EQ(n + static_cast<std::size_t>(expected.images_before_start + expected.images_not_covered), n_images);
+    ASSERT_TRUE(client_->wait_for_odometry(n, 120.0))
+        << client_->odometry().size() << " odometry messages for " << n << " processed images:\n"
+        << node.log();
+    EXPECT_EQ(node.stop(30.0), 0) << node.log();
+
+    const std::vector<ros_test::ReceivedOdometry> odom = client_->odometry();
+    ASSERT_EQ(odom.size(), n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const StampedPose& e = expected.estimate.poses[k];
+      EXPECT_EQ(odom[k].t, e.t) << "image " << k;
+      EXPECT_EQ(odom[k].frame_id, "world");
+      EXPECT_EQ(odom[k].child_frame_id, "base_link");
+      EXPECT_EQ(odom[k].p, e.p_WR) << "image " << k;
+      EXPECT_EQ(odom[k].q.coeffs(), e.q_WR.coeffs()) << "image " << k;
+      const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> cov(odom[k].pose_covariance.data());
+      EXPECT_TRUE(cov.isApprox(cov.transpose(), 0.0)) << "image " << k;
+      EXPECT_GE(cov.diagonal().minCoeff(), 0.0) << "image " << k;
+    }
+    std::size_t robot_tf = 0, camera_tf = 0;
+    for (const auto& T : client_->transforms()) {
+      robot_tf += T.parent == "world" && T.child == "base_link" ? 1 : 0;
+      camera_tf += T.parent == "base_link" && T.child == "cam0" ? 1 : 0;
+    }
+    EXPECT_EQ(robot_tf, n);
+    EXPECT_EQ(camera_tf, n);
+    EXPECT_EQ(client_->map_messages(), n);
+    EXPECT_EQ(client_->last_map_points(), static_cast<std::size_t>(expected.landmarks_final));
+    EXPECT_EQ(client_->last_map_fields(), (std::vector<std::string>{"x", "y", "z", "id"}));
+    EXPECT_EQ(io::read_trajectory(dir / "trajectory.txt").poses.size(), n);
   }
-  std::size_t robot_tf = 0, camera_tf = 0;
-  for (const auto& T : client.transforms()) {
-    robot_tf += T.parent == "world" && T.child == "base_link" ? 1 : 0;
-    camera_tf += T.parent == "base_link" && T.child == "cam0" ? 1 : 0;
-  }
-  EXPECT_EQ(robot_tf, odom.size());
-  EXPECT_EQ(camera_tf, odom.size());
-  EXPECT_EQ(client.map_messages(), odom.size());
-  EXPECT_EQ(client.last_map_points(), static_cast<std::size_t>(expected.landmarks_final));
-  EXPECT_EQ(client.last_map_fields(), (std::vector<std::string>{"x", "y", "z", "id"}));
-  EXPECT_EQ(io::read_trajectory(dir / "trajectory.txt").poses.size(), odom.size());
+
+  static std::string dir_;  // ROS_HOME of the suite
+  static Child* master_;
+  static ros_test::RosTestClient* client_;
+};
+
+std::string RosNode::dir_;
+Child* RosNode::master_ = nullptr;
+ros_test::RosTestClient* RosNode::client_ = nullptr;
+
+TEST_F(RosNode, MonocularOdometryTfAndMapForEveryImage) {
+  expect_node_matches_the_pipeline("config/sim_mono.yaml", 2.0);
 }
 
-TEST(RosNode, AMisspeltParameterStopsTheNodeWithOneLine) {
-  const std::string rosmaster = RTSLAM_ROSMASTER;
-  if (!fs::exists(rosmaster)) GTEST_SKIP() << "rosmaster not found (" << rosmaster << "): scripts/deps.sh installs it";
+TEST_F(RosNode, InertialOdometryFromImagesAndImuOnTwoTopics) {
+  expect_node_matches_the_pipeline("config/sim_mono_imu.yaml", 1.5);
+}
+
+TEST_F(RosNode, AMisspeltParameterStopsTheNodeWithOneLine) {
   io::test::TempDir dir;
-  const int port = free_port();
-  ASSERT_GT(port, 0);
-  ::setenv("ROS_MASTER_URI", ("http://127.0.0.1:" + std::to_string(port)).c_str(), 1);
-  ::setenv("ROS_IP", "127.0.0.1", 1);
-  ::setenv("ROS_HOME", dir.str().c_str(), 1);
-  ::setenv("ROS_LOG_DIR", dir.str().c_str(), 1);
-  Child master({rosmaster, "--core", "-p", std::to_string(port), "-w", "2"}, dir / "master.log");
-  ASSERT_TRUE(wait_for_port(port, 30.0)) << "rosmaster did not start:\n" << master.log();
-  Child node({RTSLAM_ROS_NODE, "__name:=rtslam_ros", "_calibraton:=typo.yaml"}, dir / "node.log");
+  // Its own name: private parameters stay on the master after the node exits.
+  Child node({RTSLAM_ROS_NODE, "__name:=rtslam_ros_typo", "_calibraton:=typo.yaml"}, dir / "node.log");
   EXPECT_EQ(node.wait(60.0), 1) << node.log();
-  EXPECT_NE(node.log().find("unknown parameter /rtslam_ros/calibraton"), std::string::npos) << node.log();
+  EXPECT_NE(node.log().find("unknown parameter /rtslam_ros_typo/calibraton"), std::string::npos) << node.log();
 }
 
 #else

@@ -101,6 +101,13 @@ bool RosTestClient::wait_for_subscribers(std::size_t n, bool imu, double timeout
   });
 }
 
+bool RosTestClient::wait_for_publishers(std::size_t n, double timeout_s) {
+  return poll(timeout_s, [&] {
+    return impl_->odom_sub.getNumPublishers() >= n && impl_->map_sub.getNumPublishers() >= n &&
+           impl_->tf_sub.getNumPublishers() >= n;
+  });
+}
+
 void RosTestClient::clear() {
   std::lock_guard lock(impl_->mutex);
   impl_->odometry.clear();

@@ -43,6 +43,9 @@ class RosTestClient {
 
   /// True once the image topic (and, with `imu`, the IMU topic) has `n` subscribers (polls until `timeout_s`).
   bool wait_for_subscribers(std::size_t n, bool imu, double timeout_s);
+  /// True once the odometry, map and /tf subscriptions are connected to `n` publishers each (polls until
+  /// `timeout_s`): what a node publishes before that is lost (ROS does not keep messages for later subscribers).
+  bool wait_for_publishers(std::size_t n, double timeout_s);
   /// Forgets what was received.
   void clear();
   /// Publishes an image (mono8) or an IMU sample.

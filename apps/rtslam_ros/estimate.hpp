@@ -23,17 +23,17 @@ struct ImageSlamFrame;
 namespace rtslam::ros_node {
 
 struct Estimate {
-  TimeNs t = 0;                                                                // image time in the IMU clock
+  TimeNs t = 0;  // image time in the IMU clock
   Eigen::Vector3d p_WR = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_WR = Eigen::Quaterniond::Identity();
   Eigen::Matrix<double, 6, 6> cov_pose = Eigen::Matrix<double, 6, 6>::Zero();  // ROS order and convention
   Eigen::Vector3d v_R = Eigen::Vector3d::Zero();                               // linear velocity in R
   Eigen::Matrix3d cov_v_R = Eigen::Matrix3d::Zero();
-  std::optional<Eigen::Vector3d> w_R;                                          // angular velocity in R (constant-
-  std::optional<Eigen::Matrix3d> cov_w_R;                                      // velocity robot; none when inertial)
-  Eigen::Isometry3d T_RS = Eigen::Isometry3d::Identity();                      // the camera, for camera_frame
-  bool with_map = false;                                                       // publish the landmarks below
-  std::vector<Eigen::Vector3f> landmarks;                                      // positions in W
+  std::optional<Eigen::Vector3d> w_R;                      // angular velocity in R (constant-
+  std::optional<Eigen::Matrix3d> cov_w_R;                  // velocity robot; none when inertial)
+  Eigen::Isometry3d T_RS = Eigen::Isometry3d::Identity();  // the camera, for camera_frame
+  bool with_map = false;                                   // publish the landmarks below
+  std::vector<Eigen::Vector3f> landmarks;                  // positions in W
   std::vector<std::uint32_t> landmark_ids;
 };
 

@@ -14,8 +14,8 @@ LiveSource::LiveSource(const Options& options)
       imu_(options.imu_capacity),
       reporter_(io::BadInputPolicy::Skip, stats_) {
   if (options.image_capacity == 0 || options.imu_capacity == 0) {
-    throw ConfigError(fmt::format("live source: queue sizes must be >= 1 (images {}, IMU {})",
-                                  options.image_capacity, options.imu_capacity));
+    throw ConfigError(fmt::format("live source: queue sizes must be >= 1 (images {}, IMU {})", options.image_capacity,
+                                  options.imu_capacity));
   }
   if (!(options.max_image_wait_s >= 0.0)) {
     throw ConfigError(fmt::format("live source: max_image_wait_s = {} must be >= 0", options.max_image_wait_s));

@@ -27,10 +27,10 @@ namespace rtslam::ros_node {
 class LiveSource final : public io::Source {
  public:
   struct Options {
-    std::size_t image_capacity = 30;    // queued images (≥ 1)
-    std::size_t imu_capacity = 4000;    // queued IMU samples (≥ 1): 20 s at 200 Hz
-    bool with_imu = false;              // images wait for the IMU samples that cover them
-    double max_image_wait_s = 0.5;      // wall time an image waits for IMU coverage at most
+    std::size_t image_capacity = 30;  // queued images (≥ 1)
+    std::size_t imu_capacity = 4000;  // queued IMU samples (≥ 1): 20 s at 200 Hz
+    bool with_imu = false;            // images wait for the IMU samples that cover them
+    double max_image_wait_s = 0.5;    // wall time an image waits for IMU coverage at most
   };
   explicit LiveSource(const Options& options);
 

@@ -37,8 +37,8 @@ int run(RosBridge& bridge) {
   ds.rig = io::load_rig(params.calibration, {params.camera});
   for (const auto& w : ds.rig.warnings) logger("ros")->warn("{}", w);
   if (inertial && !ds.rig.imu) {
-    throw ConfigError(fmt::format("{}: the configuration's robot is inertial but the calibration has no IMU",
-                                  params.calibration));
+    throw ConfigError(
+        fmt::format("{}: the configuration's robot is inertial but the calibration has no IMU", params.calibration));
   }
   LiveSource::Options lo;
   lo.image_capacity = static_cast<std::size_t>(params.queue_size);
@@ -75,10 +75,10 @@ int run(RosBridge& bridge) {
   filter.join();
 
   if (!params.trajectory.empty() && !result.estimate.poses.empty()) io::write_tum(params.trajectory, result.estimate);
-  logger("ros")->info("rtslam_ros: {} image(s) processed; input: {}; dropped (filter behind): {} image(s), {} IMU "
-                      "sample(s)",
-                      result.frames.size(), live.stats().summary(), live.dropped_images(),
-                      live.dropped_imu_samples());
+  logger("ros")->info(
+      "rtslam_ros: {} image(s) processed; input: {}; dropped (filter behind): {} image(s), {} IMU "
+      "sample(s)",
+      result.frames.size(), live.stats().summary(), live.dropped_images(), live.dropped_imu_samples());
   if (data_error && live.stats().images == 0) {
     // Stopped before the first image: nothing went wrong, there was nothing to do.
     logger("ros")->warn("rtslam_ros: no image received on {}", params.image_topic);

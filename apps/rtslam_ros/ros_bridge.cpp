@@ -86,26 +86,28 @@ RosBridge::RosBridge(int& argc, char** argv) : impl_(std::make_unique<Impl>()) {
   read_param(pnh, "trajectory", p.trajectory, "a string (file)");
   const std::string ns = pnh.getNamespace();
   // Unknown private parameters are errors (a misspelt name would otherwise leave a default in place silently).
-  static const std::set<std::string> kKnown = {"config",      "calibration",  "camera",       "image_topic",
-                                               "imu_topic",   "world_frame",  "robot_frame",  "camera_frame",
-                                               "queue_size",  "imu_queue_size", "map_every",  "trajectory"};
+  static const std::set<std::string> kKnown = {"config",     "calibration",    "camera",      "image_topic",
+                                               "imu_topic",  "world_frame",    "robot_frame", "camera_frame",
+                                               "queue_size", "imu_queue_size", "map_every",   "trajectory"};
   std::vector<std::string> names;
   if (impl_->nh->getParamNames(names)) {
     for (const std::string& name : names) {
       if (name.rfind(ns + "/", 0) != 0) continue;
       const std::string key = name.substr(ns.size() + 1);
       if (kKnown.count(key.substr(0, key.find('/'))) == 0) {
-        throw ConfigError(fmt::format("unknown parameter {} (known: config, calibration, camera, image_topic, "
-                                      "imu_topic, world_frame, robot_frame, camera_frame, queue_size, imu_queue_size, "
-                                      "map_every, trajectory)",
-                                      name));
+        throw ConfigError(
+            fmt::format("unknown parameter {} (known: config, calibration, camera, image_topic, "
+                        "imu_topic, world_frame, robot_frame, camera_frame, queue_size, imu_queue_size, "
+                        "map_every, trajectory)",
+                        name));
       }
     }
   }
   if (p.calibration.empty()) {
-    throw ConfigError(fmt::format("parameter {}/calibration is required (a rig YAML, Kalibr camchain, EuRoC "
-                                  "sensor.yaml or EuRoC folder)",
-                                  ns));
+    throw ConfigError(
+        fmt::format("parameter {}/calibration is required (a rig YAML, Kalibr camchain, EuRoC "
+                    "sensor.yaml or EuRoC folder)",
+                    ns));
   }
   if (p.camera < 0) throw ConfigError(fmt::format("parameter {}/camera = {} must be >= 0", ns, p.camera));
   if (p.queue_size < 1) throw ConfigError(fmt::format("parameter {}/queue_size = {} must be >= 1", ns, p.queue_size));
@@ -151,18 +153,20 @@ void RosBridge::start(std::function<void(io::ImageFrame)> on_image, std::functio
         frame.path = fmt::format("{}#{}", image_topic, msg->header.seq);
         on_image(std::move(frame));
       };
-  d.image_sub = d.nh->subscribe<sensor_msgs::Image>(image_topic, static_cast<std::uint32_t>(d.params.queue_size),
-                                                    image_cb);
+  d.image_sub =
+      d.nh->subscribe<sensor_msgs::Image>(image_topic, static_cast<std::uint32_t>(d.params.queue_size), image_cb);
   if (with_imu) {
-    const boost::function<void(const sensor_msgs::Imu::ConstPtr&)> imu_cb = [on_imu](const sensor_msgs::Imu::ConstPtr& msg) {
-      io::ImuSample s;
-      s.t = to_ns(msg->header.stamp);
-      s.gyro = Eigen::Vector3d(msg->angular_velocity.x, msg->angular_velocity.y, msg->angular_velocity.z);
-      s.accel = Eigen::Vector3d(msg->linear_acceleration.x, msg->linear_acceleration.y, msg->linear_acceleration.z);
-      on_imu(s);
-    };
-    d.imu_sub = d.nh->subscribe<sensor_msgs::Imu>(d.params.imu_topic, static_cast<std::uint32_t>(d.params.imu_queue_size),
-                                                  imu_cb, ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+    const boost::function<void(const sensor_msgs::Imu::ConstPtr&)> imu_cb =
+        [on_imu](const sensor_msgs::Imu::ConstPtr& msg) {
+          io::ImuSample s;
+          s.t = to_ns(msg->header.stamp);
+          s.gyro = Eigen::Vector3d(msg->angular_velocity.x, msg->angular_velocity.y, msg->angular_velocity.z);
+          s.accel = Eigen::Vector3d(msg->linear_acceleration.x, msg->linear_acceleration.y, msg->linear_acceleration.z);
+          on_imu(s);
+        };
+    d.imu_sub =
+        d.nh->subscribe<sensor_msgs::Imu>(d.params.imu_topic, static_cast<std::uint32_t>(d.params.imu_queue_size),
+                                          imu_cb, ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
   }
   logger("ros")->info("rtslam_ros: images from {}{}; publishing {}, {}, /tf ({} -> {})", image_topic,
                       with_imu ? ", IMU from " + d.params.imu_topic : std::string(" (IMU not used)"),

@@ -15,18 +15,18 @@ namespace rtslam::ros_node {
 
 /// The node's private parameters (~name), with their defaults.
 struct NodeParams {
-  std::string config;                          // rtslam run configuration YAML ("": the options' defaults)
-  std::string calibration;                     // rig file or EuRoC folder (io::load_rig), required
-  int camera = 0;                              // camera of the calibration that image_topic shows
+  std::string config;                           // rtslam run configuration YAML ("": the options' defaults)
+  std::string calibration;                      // rig file or EuRoC folder (io::load_rig), required
+  int camera = 0;                               // camera of the calibration that image_topic shows
   std::string image_topic = "/cam0/image_raw";  // sensor_msgs/Image
-  std::string imu_topic = "/imu0";             // sensor_msgs/Imu, subscribed when the robot is inertial
-  std::string world_frame = "world";           // W
-  std::string robot_frame = "base_link";       // R: the robot body (the IMU on inertial rigs)
-  std::string camera_frame;                    // S of the camera: when set, R -> S is published on /tf too
-  int queue_size = 30;                         // images waiting for the filter (the oldest is dropped when full)
-  int imu_queue_size = 4000;                   // IMU samples waiting for the filter
-  int map_every = 1;                           // publish the map every N processed images (0: never)
-  std::string trajectory;                      // TUM trajectory file written at exit ("": none)
+  std::string imu_topic = "/imu0";              // sensor_msgs/Imu, subscribed when the robot is inertial
+  std::string world_frame = "world";            // W
+  std::string robot_frame = "base_link";        // R: the robot body (the IMU on inertial rigs)
+  std::string camera_frame;                     // S of the camera: when set, R -> S is published on /tf too
+  int queue_size = 30;                          // images waiting for the filter (the oldest is dropped when full)
+  int imu_queue_size = 4000;                    // IMU samples waiting for the filter
+  int map_every = 1;                            // publish the map every N processed images (0: never)
+  std::string trajectory;                       // TUM trajectory file written at exit ("": none)
 };
 
 class RosBridge {

@@ -58,7 +58,8 @@ RosTestClient::RosTestClient(const std::string& name, const std::string& image_t
   d.imu_pub = d.nh->advertise<sensor_msgs::Imu>(imu_topic, 10000);
   Impl* p = impl_.get();
   d.odom_sub = d.nh->subscribe<nav_msgs::Odometry>(
-      odom_topic, 10000, boost::function<void(const nav_msgs::Odometry::ConstPtr&)>([p](const nav_msgs::Odometry::ConstPtr& m) {
+      odom_topic, 10000,
+      boost::function<void(const nav_msgs::Odometry::ConstPtr&)>([p](const nav_msgs::Odometry::ConstPtr& m) {
         ReceivedOdometry o;
         o.t = to_ns(m->header.stamp);
         o.frame_id = m->header.frame_id;
@@ -71,20 +72,23 @@ RosTestClient::RosTestClient(const std::string& name, const std::string& image_t
         p->odometry.push_back(o);
       }));
   d.tf_sub = d.nh->subscribe<tf2_msgs::TFMessage>(
-      "/tf", 10000, boost::function<void(const tf2_msgs::TFMessage::ConstPtr&)>([p](const tf2_msgs::TFMessage::ConstPtr& m) {
+      "/tf", 10000,
+      boost::function<void(const tf2_msgs::TFMessage::ConstPtr&)>([p](const tf2_msgs::TFMessage::ConstPtr& m) {
         std::lock_guard lock(p->mutex);
         for (const auto& T : m->transforms) {
           p->transforms.push_back({to_ns(T.header.stamp), T.header.frame_id, T.child_frame_id});
         }
       }));
   d.map_sub = d.nh->subscribe<sensor_msgs::PointCloud2>(
-      map_topic, 100, boost::function<void(const sensor_msgs::PointCloud2::ConstPtr&)>([p](const sensor_msgs::PointCloud2::ConstPtr& m) {
-        std::lock_guard lock(p->mutex);
-        ++p->map_messages;
-        p->last_map_points = static_cast<std::size_t>(m->width) * m->height;
-        p->last_map_fields.clear();
-        for (const auto& f : m->fields) p->last_map_fields.push_back(f.name);
-      }));
+      map_topic, 100,
+      boost::function<void(const sensor_msgs::PointCloud2::ConstPtr&)>(
+          [p](const sensor_msgs::PointCloud2::ConstPtr& m) {
+            std::lock_guard lock(p->mutex);
+            ++p->map_messages;
+            p->last_map_points = static_cast<std::size_t>(m->width) * m->height;
+            p->last_map_fields.clear();
+            for (const auto& f : m->fields) p->last_map_fields.push_back(f.name);
+          }));
   d.spinner = std::make_unique<ros::AsyncSpinner>(1);
   d.spinner->start();
 }

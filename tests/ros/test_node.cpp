@@ -184,8 +184,8 @@ class RosNode : public ::testing::Test {
     for (const auto& m : recorded.measurements()) n_images += std::holds_alternative<io::ImageFrame>(m) ? 1 : 0;
 
     Child node({RTSLAM_ROS_NODE, "__name:=rtslam_ros", "_calibration:=" + (dir / "rig.yaml"),
-                "_config:=" + (dir / "config.yaml"), "_trajectory:=" + (dir / "trajectory.txt"),
-                "_camera_frame:=cam0", "_queue_size:=1000"},
+                "_config:=" + (dir / "config.yaml"), "_trajectory:=" + (dir / "trajectory.txt"), "_camera_frame:=cam0",
+                "_queue_size:=1000"},
                dir / "node.log");
     ASSERT_TRUE(client_->wait_for_subscribers(1, inertial, 60.0)) << "the node did not subscribe:\n" << node.log();
     ASSERT_TRUE(client_->wait_for_publishers(1, 60.0)) << "no connection to the node's publishers:\n" << node.log();

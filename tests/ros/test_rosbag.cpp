@@ -29,15 +29,17 @@ namespace fs = std::filesystem;
 using ros_test::Recorded;
 using test::TempDir;
 
-#define REQUIRE_ROS()                                                                                              \
-  if (!rosbag_supported()) GTEST_SKIP() << "built without ROS1: bag tests skipped (scripts/deps.sh installs the " \
-                                           "packages, docs/ros.md)"
+#define REQUIRE_ROS()                                                                    \
+  if (!rosbag_supported())                                                               \
+  GTEST_SKIP() << "built without ROS1: bag tests skipped (scripts/deps.sh installs the " \
+                  "packages, docs/ros.md)"
 
 // ------------------------------------------------------------------------------------------ image encodings
 
 std::vector<std::uint8_t> bytes(const cv::Mat& m) {
   std::vector<std::uint8_t> v;
-  for (int r = 0; r < m.rows; ++r) v.insert(v.end(), m.ptr<std::uint8_t>(r), m.ptr<std::uint8_t>(r) + m.cols * m.elemSize());
+  for (int r = 0; r < m.rows; ++r)
+    v.insert(v.end(), m.ptr<std::uint8_t>(r), m.ptr<std::uint8_t>(r) + m.cols * m.elemSize());
   return v;
 }
 
@@ -67,8 +69,12 @@ TEST(RosImage, ColourEncodingsUseOpenCvsWeightsWhateverTheChannelOrder) {
     EXPECT_FALSE(g.empty()) << enc << ": " << error;
     return g;
   };
-  for (const auto& [enc, m] : {std::pair<std::string, cv::Mat>{"bgr8", bgr}, {"rgb8", rgb}, {"bgra8", bgra},
-                               {"rgba8", rgba}, {"8UC3", bgr}, {"8UC4", bgra}}) {
+  for (const auto& [enc, m] : {std::pair<std::string, cv::Mat>{"bgr8", bgr},
+                               {"rgb8", rgb},
+                               {"bgra8", bgra},
+                               {"rgba8", rgba},
+                               {"8UC3", bgr},
+                               {"8UC4", bgra}}) {
     const cv::Mat g = convert(enc, m);
     ASSERT_EQ(g.size(), expected.size()) << enc;
     EXPECT_EQ(cv::norm(g, expected, cv::NORM_INF), 0.0) << enc;
@@ -92,7 +98,7 @@ TEST(RosImage, RefusesOtherEncodingsAndInconsistentBuffersWithOneLine) {
   std::string error;
   EXPECT_TRUE(grey_from_ros_image("mono16", 4, 4, 8, data.data(), 32, &error).empty());
   EXPECT_NE(error.find("'mono16' is not supported"), std::string::npos) << error;
-  EXPECT_NE(error.find("mono8"), std::string::npos) << error;  // lists what is supported
+  EXPECT_NE(error.find("mono8"), std::string::npos) << error;                          // lists what is supported
   EXPECT_TRUE(grey_from_ros_image("rgb8", 4, 4, 8, data.data(), 32, &error).empty());  // step < 3 * width
   EXPECT_NE(error.find("step 8 is less than"), std::string::npos) << error;
   EXPECT_TRUE(grey_from_ros_image("mono8", 4, 4, 4, data.data(), 15, &error).empty());
@@ -252,8 +258,7 @@ TEST(Rosbag, WithoutCalibrationTheMessageSaysWhereItLooked) {
   Dataset ds = open_dataset("rosbag:" + (dir / "bare.bag"), o);
   EXPECT_EQ(ds.rig.cameras.at(0).fx, sim.rig().cameras[0].fx);
   wo.compression = "zip";
-  EXPECT_THROW_WITH(write_rosbag(*sim.make_source(), sim.rig(), dir / "x.bag", wo), ConfigError,
-                    "compression = 'zip'");
+  EXPECT_THROW_WITH(write_rosbag(*sim.make_source(), sim.rig(), dir / "x.bag", wo), ConfigError, "compression = 'zip'");
 }
 
 TEST(Rosbag, EurocExcerptThroughABagKeepsEveryMeasurementAndTheGroundTruth) {
@@ -343,14 +348,20 @@ TEST(Rosbag, BadInputIsReportedOrSkippedAndCountedLikeTheOtherReaders) {
   mono16.step = 8;
   mono16.data.assign(32, 1);
   RawImu nan = imu_at(kT0 + 10 * kMs, std::numeric_limits<double>::quiet_NaN());
-  std::vector<RawMessage> messages = {
-      imu_at(kT0),            mono(kT0),                 imu_at(kT0 + 5 * kMs), imu_at(kT0 + 5 * kMs),  // duplicate
-      mono(kT0),                                                                                      // duplicate
-      nan,                    imu_at(kT0 + 4 * kMs),                                                  // backwards
-      imu_at(kT0 + 10 * kMs), mono(kT0 + 10 * kMs, 6, 4),                                            // wrong size
-      mono16,                                                                                         // undecodable
-      imu_at(kT0 + 15 * kMs), mono(kT0 + 20 * kMs),      mono(kT0 + 15 * kMs),                       // backwards
-      mono(kT0 + 30 * kMs)};
+  std::vector<RawMessage> messages = {imu_at(kT0),
+                                      mono(kT0),
+                                      imu_at(kT0 + 5 * kMs),
+                                      imu_at(kT0 + 5 * kMs),  // duplicate
+                                      mono(kT0),              // duplicate
+                                      nan,
+                                      imu_at(kT0 + 4 * kMs),  // backwards
+                                      imu_at(kT0 + 10 * kMs),
+                                      mono(kT0 + 10 * kMs, 6, 4),  // wrong size
+                                      mono16,                      // undecodable
+                                      imu_at(kT0 + 15 * kMs),
+                                      mono(kT0 + 20 * kMs),
+                                      mono(kT0 + 15 * kMs),  // backwards
+                                      mono(kT0 + 30 * kMs)};
   // The bag's order is its receive times (rosbag::View sorts by them): received in the order above, 1 ms apart,
   // whatever the header stamps say.
   for (std::size_t i = 0; i < messages.size(); ++i) {
@@ -367,9 +378,12 @@ TEST(Rosbag, BadInputIsReportedOrSkippedAndCountedLikeTheOtherReaders) {
   Dataset ds = open_dataset("rosbag:" + bag, o);
   std::vector<std::pair<TimeNs, bool>> got;  // (t, is image)
   while (auto m = ds.source->next()) got.emplace_back(time_of(*m), std::holds_alternative<ImageFrame>(*m));
-  const std::vector<std::pair<TimeNs, bool>> expected = {{kT0, false},          {kT0, true},
-                                                         {kT0 + 5 * kMs, false}, {kT0 + 10 * kMs, false},
-                                                         {kT0 + 15 * kMs, false}, {kT0 + 20 * kMs, true},
+  const std::vector<std::pair<TimeNs, bool>> expected = {{kT0, false},
+                                                         {kT0, true},
+                                                         {kT0 + 5 * kMs, false},
+                                                         {kT0 + 10 * kMs, false},
+                                                         {kT0 + 15 * kMs, false},
+                                                         {kT0 + 20 * kMs, true},
                                                          {kT0 + 30 * kMs, true}};
   EXPECT_EQ(got, expected);
   const SourceStats& s = ds.source->stats();

@@ -80,8 +80,8 @@ std::string supported_ros_image_encodings() {
   return s;
 }
 
-cv::Mat grey_from_ros_image(const std::string& encoding, std::uint32_t width, std::uint32_t height,
-                            std::uint32_t step, const std::uint8_t* data, std::size_t size, std::string* error) {
+cv::Mat grey_from_ros_image(const std::string& encoding, std::uint32_t width, std::uint32_t height, std::uint32_t step,
+                            const std::uint8_t* data, std::size_t size, std::string* error) {
   const auto fail = [&](const std::string& message) {
     if (error != nullptr) *error = message;
     return cv::Mat();

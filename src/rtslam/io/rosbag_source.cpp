@@ -10,12 +10,12 @@
 #include <memory>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
@@ -45,7 +45,7 @@ struct BagReadSpec {
   std::string imu_topic;                  // empty: none
   bool receive_time = false;
   StreamCheckOptions checks;
-  std::vector<cv::Size> image_sizes;      // camera i, 0x0: unchecked
+  std::vector<cv::Size> image_sizes;  // camera i, 0x0: unchecked
 };
 
 /// A bag as a time-ordered stream: indexed and checked when it is constructed, images decoded by next().
@@ -137,8 +137,8 @@ void RosbagSource::index(const BagReadSpec& spec) {
                                 path_, topic, c, topic_list()));
     }
     if (it->second != kImageType && it->second != kCompressedType) {
-      throw ConfigError(fmt::format("{}: topic '{}' is {}, not {} or {}", path_, topic, it->second, kImageType,
-                                    kCompressedType));
+      throw ConfigError(
+          fmt::format("{}: topic '{}' is {}, not {} or {}", path_, topic, it->second, kImageType, kCompressedType));
     }
     if (!camera_of_topic.emplace(topic, static_cast<int>(c)).second) {
       throw ConfigError(fmt::format("{}: topic '{}' is given for two cameras", path_, topic));
@@ -247,10 +247,10 @@ void RosbagSource::index(const BagReadSpec& spec) {
       if (period_s > 0) {
         const double missing = std::round(to_seconds(s.t - prev) / period_s) - 1.0;
         if (missing > spec.checks.max_imu_dropout) {
-          reporter_.report(&SourceStats::imu_gaps,
-                           fmt::format("{}: IMU gap of {:.3f} s (~{} samples missing, more than {})", at,
-                                       to_seconds(s.t - prev), static_cast<long long>(missing),
-                                       spec.checks.max_imu_dropout));
+          reporter_.report(
+              &SourceStats::imu_gaps,
+              fmt::format("{}: IMU gap of {:.3f} s (~{} samples missing, more than {})", at, to_seconds(s.t - prev),
+                          static_cast<long long>(missing), spec.checks.max_imu_dropout));
           // Nothing to drop for a gap: the sample after it is kept.
         }
       }
@@ -336,15 +336,15 @@ std::optional<Measurement> RosbagSource::next() {
     std::string error;
     frame.image = decode(e, &error);
     if (frame.image.empty()) {
-      reporter_.report(&SourceStats::undecodable_images, fmt::format("{}: {}", where(image_topics_[c], e.k, e.t), error),
-                       true);
+      reporter_.report(&SourceStats::undecodable_images,
+                       fmt::format("{}: {}", where(image_topics_[c], e.k, e.t), error), true);
       continue;
     }
     if (c < image_sizes_.size() && image_sizes_[c].area() > 0 && frame.image.size() != image_sizes_[c]) {
-      reporter_.report(&SourceStats::wrong_size_images,
-                       fmt::format("{}: image is {}x{}, the calibration of camera {} says {}x{}",
-                                   where(image_topics_[c], e.k, e.t), frame.image.cols, frame.image.rows, e.camera,
-                                   image_sizes_[c].width, image_sizes_[c].height));
+      reporter_.report(
+          &SourceStats::wrong_size_images,
+          fmt::format("{}: image is {}x{}, the calibration of camera {} says {}x{}", where(image_topics_[c], e.k, e.t),
+                      frame.image.cols, frame.image.rows, e.camera, image_sizes_[c].width, image_sizes_[c].height));
       continue;
     }
     ++stats_.images;
@@ -357,8 +357,8 @@ std::optional<Measurement> RosbagSource::next() {
 std::string calibration_next_to(const fs::path& bag) {
   const fs::path dir = bag.parent_path().empty() ? fs::path(".") : bag.parent_path();
   const std::string stem = bag.stem().string();
-  for (const std::string& name : {stem + ".yaml", std::string("calibration.yaml"), std::string("camchain.yaml"),
-                                  std::string("sensor.yaml")}) {
+  for (const std::string& name :
+       {stem + ".yaml", std::string("calibration.yaml"), std::string("camchain.yaml"), std::string("sensor.yaml")}) {
     if (fs::is_regular_file(dir / name)) return (dir / name).string();
   }
   for (const fs::path& folder : {dir / stem, dir / "mav0"}) {
@@ -379,10 +379,11 @@ Dataset open_rosbag(const std::string& path, const DatasetOptions& o) {
   ds.name = fs::path(path).stem().string();
   const std::string calibration = o.calibration.empty() ? calibration_next_to(path) : o.calibration;
   if (calibration.empty()) {
-    throw IoError(fmt::format("{}: no calibration: give the calibration option (a rig YAML, Kalibr camchain, EuRoC "
-                              "sensor.yaml or EuRoC folder) or put {}.yaml, calibration.yaml, camchain.yaml, "
-                              "sensor.yaml or an EuRoC mav0/ folder next to the bag",
-                              path, fs::path(path).stem().string()));
+    throw IoError(
+        fmt::format("{}: no calibration: give the calibration option (a rig YAML, Kalibr camchain, EuRoC "
+                    "sensor.yaml or EuRoC folder) or put {}.yaml, calibration.yaml, camchain.yaml, "
+                    "sensor.yaml or an EuRoC mav0/ folder next to the bag",
+                    path, fs::path(path).stem().string()));
   }
   ds.rig = load_rig(calibration, o.cameras);
   if (ds.rig.cameras.empty()) throw ConfigError(fmt::format("{}: no camera selected (option cameras)", path));
@@ -391,9 +392,10 @@ Dataset open_rosbag(const std::string& path, const DatasetOptions& o) {
   if (o.image_topics.empty()) {
     for (int c : o.cameras) spec.image_topics.push_back(fmt::format("/cam{}/image_raw", c));
   } else if (o.image_topics.size() != o.cameras.size()) {
-    throw ConfigError(fmt::format("{}: {} image topics for {} cameras (option image_topics: one per camera of the "
-                                  "cameras option)",
-                                  path, o.image_topics.size(), o.cameras.size()));
+    throw ConfigError(
+        fmt::format("{}: {} image topics for {} cameras (option image_topics: one per camera of the "
+                    "cameras option)",
+                    path, o.image_topics.size(), o.cameras.size()));
   } else {
     spec.image_topics = o.image_topics;
   }
@@ -406,8 +408,8 @@ Dataset open_rosbag(const std::string& path, const DatasetOptions& o) {
   ds.source = std::make_unique<RosbagSource>(path, spec);
 
   if (fs::is_directory(calibration)) {
-    const fs::path root = fs::is_directory(fs::path(calibration) / "mav0") ? fs::path(calibration) / "mav0"
-                                                                            : fs::path(calibration);
+    const fs::path root =
+        fs::is_directory(fs::path(calibration) / "mav0") ? fs::path(calibration) / "mav0" : fs::path(calibration);
     const fs::path gt = root / "state_groundtruth_estimate0" / "data.csv";
     if (fs::is_regular_file(gt)) ds.ground_truth = read_trajectory(gt.string(), TrajectoryFormat::EurocCsv);
   }
@@ -418,12 +420,12 @@ RosbagWriteStats write_rosbag(Source& source, const Rig& rig, const std::string&
                               const RosbagWriteOptions& options) {
   const auto n_cameras = rig.cameras.size();
   if (!options.image_topics.empty() && options.image_topics.size() != n_cameras) {
-    throw ConfigError(fmt::format("{}: {} image topics for the rig's {} cameras", path, options.image_topics.size(),
-                                  n_cameras));
+    throw ConfigError(
+        fmt::format("{}: {} image topics for the rig's {} cameras", path, options.image_topics.size(), n_cameras));
   }
   if (!options.camera_frames.empty() && options.camera_frames.size() != n_cameras) {
-    throw ConfigError(fmt::format("{}: {} camera frames for the rig's {} cameras", path, options.camera_frames.size(),
-                                  n_cameras));
+    throw ConfigError(
+        fmt::format("{}: {} camera frames for the rig's {} cameras", path, options.camera_frames.size(), n_cameras));
   }
   rosbag::compression::CompressionType compression = rosbag::compression::Uncompressed;
   if (options.compression == "lz4") {
@@ -437,7 +439,7 @@ RosbagWriteStats write_rosbag(Source& source, const Rig& rig, const std::string&
   std::vector<std::string> frames(n_cameras);
   for (std::size_t c = 0; c < n_cameras; ++c) {
     topics[c] = options.image_topics.empty() ? fmt::format("/cam{}/image_raw", c) : options.image_topics[c];
-    frames[c] = !options.camera_frames.empty()    ? options.camera_frames[c]
+    frames[c] = !options.camera_frames.empty() ? options.camera_frames[c]
                 : !rig.cameras[c].name.empty() ? rig.cameras[c].name
                                                : fmt::format("cam{}", c);
   }
@@ -486,12 +488,11 @@ RosbagWriteStats write_rosbag(Source& source, const Rig& rig, const std::string&
       }
       const auto& frame = std::get<ImageFrame>(*m);
       if (frame.camera < 0 || static_cast<std::size_t>(frame.camera) >= n_cameras) {
-        throw ConfigError(fmt::format("{}: image of camera {} but the rig has {} camera(s)", path, frame.camera,
-                                      n_cameras));
+        throw ConfigError(
+            fmt::format("{}: image of camera {} but the rig has {} camera(s)", path, frame.camera, n_cameras));
       }
       if (frame.image.type() != CV_8UC1 || frame.image.empty()) {
-        throw DataError(fmt::format("{}: image {} at t = {} s is not 8-bit grey", path, frame.path,
-                                    format_seconds(t)));
+        throw DataError(fmt::format("{}: image {} at t = {} s is not 8-bit grey", path, frame.path, format_seconds(t)));
       }
       const auto c = static_cast<std::size_t>(frame.camera);
       sensor_msgs::Image msg;
@@ -505,7 +506,8 @@ RosbagWriteStats write_rosbag(Source& source, const Rig& rig, const std::string&
       msg.step = msg.width;
       msg.data.resize(static_cast<std::size_t>(msg.step) * msg.height);
       for (int r = 0; r < frame.image.rows; ++r) {
-        std::copy_n(frame.image.ptr<std::uint8_t>(r), msg.width, msg.data.data() + static_cast<std::size_t>(r) * msg.step);
+        std::copy_n(frame.image.ptr<std::uint8_t>(r), msg.width,
+                    msg.data.data() + static_cast<std::size_t>(r) * msg.step);
       }
       bag.write(topics[c], stamp, msg);
       ++stats.images;

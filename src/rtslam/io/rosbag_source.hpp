@@ -52,20 +52,20 @@ Rig load_rig(const std::string& path, const std::vector<int>& cameras = {0});
 /// 8UC3 / 8UC4 aliases, taken as BGR) with OpenCV's weights, bayer_{rggb,bggr,gbrg,grbg}8 demosaiced. Other
 /// encodings (16-bit, float, YUV, ...) are refused. Returns an empty Mat and sets `error` (one line) when the
 /// encoding is refused or `step` / `size` do not fit width x height; never throws.
-cv::Mat grey_from_ros_image(const std::string& encoding, std::uint32_t width, std::uint32_t height,
-                            std::uint32_t step, const std::uint8_t* data, std::size_t size, std::string* error);
+cv::Mat grey_from_ros_image(const std::string& encoding, std::uint32_t width, std::uint32_t height, std::uint32_t step,
+                            const std::uint8_t* data, std::size_t size, std::string* error);
 
 /// The encodings grey_from_ros_image accepts, for messages ("mono8, 8UC1, rgb8, ...").
 std::string supported_ros_image_encodings();
 
 struct RosbagWriteOptions {
-  std::vector<std::string> image_topics;   // topic of camera i of the rig (empty: /cam<i>/image_raw)
+  std::vector<std::string> image_topics;  // topic of camera i of the rig (empty: /cam<i>/image_raw)
   std::string imu_topic = "/imu0";
   std::vector<std::string> camera_frames;  // header.frame_id of camera i (empty: the rig's camera names)
   std::string imu_frame = "imu0";
-  std::string compression = "none";        // chunk compression: none | lz4 | bz2
-  bool write_calibration = true;           // the rig as rtslam rig YAML in FILE.yaml (FILE.bag minus .bag), which
-                                           // open_rosbag finds by itself
+  std::string compression = "none";  // chunk compression: none | lz4 | bz2
+  bool write_calibration = true;     // the rig as rtslam rig YAML in FILE.yaml (FILE.bag minus .bag), which
+                                     // open_rosbag finds by itself
 };
 
 struct RosbagWriteStats {

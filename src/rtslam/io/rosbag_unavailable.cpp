@@ -9,9 +9,10 @@ namespace rtslam::io {
 namespace {
 
 [[noreturn]] void no_ros(const std::string& path) {
-  throw ConfigError(fmt::format("{}: this rtslam was built without ROS support (ROS1 packages not found when it was "
-                                "configured: install them with scripts/deps.sh and configure again, see docs/ros.md)",
-                                path));
+  throw ConfigError(
+      fmt::format("{}: this rtslam was built without ROS support (ROS1 packages not found when it was "
+                  "configured: install them with scripts/deps.sh and configure again, see docs/ros.md)",
+                  path));
 }
 
 }  // namespace

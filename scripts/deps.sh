@@ -6,6 +6,8 @@ packages=(
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
   libcivetweb-dev nodejs
+  # ROS1 (optional at build time, RTSLAM_WITH_ROS; docs/ros.md): bags, the rtslam_ros node, rosmaster for its test
+  librosbag-storage-dev libroscpp-dev libsensor-msgs-dev libnav-msgs-dev libtf2-msgs-dev python3-rosmaster
 )
 # npm fetches the viewer's three.js at build time; Debian's nodejs lacks it, NodeSource's ships it.
 command -v npm >/dev/null 2>&1 || packages+=(npm)

@@ -235,7 +235,8 @@ TEST(Dataset, ReadsVideoFile) {
 TEST(Dataset, UnknownKindsAndPathsAreErrors) {
   TempDir dir;
   EXPECT_THROW_WITH(open_dataset(dir / "nope"), IoError, "nope: dataset not found");
-  EXPECT_THROW_WITH(open_dataset("rosbag:" + dir / "x.bag"), ConfigError, "unknown kind 'rosbag'");
+  EXPECT_THROW_WITH(open_dataset("zarr:" + dir / "x.zarr"), ConfigError, "unknown kind 'zarr'");
+  EXPECT_THROW_WITH(open_dataset("rosbag:" + dir / "x.bag"), IoError, "x.bag: dataset not found");
   EXPECT_THROW_WITH(open_dataset(dir.str()), IoError, "cannot tell the dataset kind");
   write_text(dir / "a.png", "");
   write_text(dir / "data.txt", "1");

@@ -10,6 +10,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/io/text.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 
@@ -433,7 +434,9 @@ std::string detect_dataset_kind(const std::string& path) {
   const fs::path p(path);
   if (fs::is_regular_file(p)) {
     if (is_video_file(p)) return "video";
-    throw IoError(fmt::format("{}: a file that is not a known video type (mp4, avi, mkv, ...)", path));
+    if (lower(p.extension().string()) == ".bag") return "rosbag";
+    throw IoError(fmt::format("{}: a file that is not a known video type (mp4, avi, mkv, ...) or a ROS bag (.bag)",
+                              path));
   }
   if (!fs::is_directory(p)) throw IoError(fmt::format("{}: dataset not found", path));
   if (fs::is_directory(p / "mav0") || fs::is_regular_file(p / "imu0" / "data.csv") ||
@@ -453,12 +456,12 @@ Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
   const size_t colon = spec.find(':');
   if (colon != std::string::npos && colon > 1) {  // "euroc:/data/..." (colon > 1 keeps "C:\\..." paths intact)
     const std::string k = lower(spec.substr(0, colon));
-    if (k == "euroc" || k == "asl" || k == "tum" || k == "kitti" || k == "images" || k == "video") {
+    if (k == "euroc" || k == "asl" || k == "tum" || k == "kitti" || k == "images" || k == "video" || k == "rosbag") {
       kind = k == "asl" ? "euroc" : k;
       path = spec.substr(colon + 1);
     } else if (!fs::exists(spec)) {
-      throw ConfigError(fmt::format("dataset '{}': unknown kind '{}' (known: euroc, tum, kitti, images, video)", spec,
-                                    k));
+      throw ConfigError(fmt::format("dataset '{}': unknown kind '{}' (known: euroc, tum, kitti, images, video, rosbag)",
+                                    spec, k));
     }
   }
   if (kind.empty()) kind = detect_dataset_kind(path);
@@ -474,6 +477,8 @@ Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
     ds = open_kitti(root, options);
   } else if (kind == "images") {
     ds = open_images(root, options);
+  } else if (kind == "rosbag") {
+    ds = open_rosbag(root.string(), options);
   } else {
     ds = open_video(root, options);
   }

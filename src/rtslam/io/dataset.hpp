@@ -11,6 +11,9 @@
 //           option or camera.json / calibration.yaml / camera.yaml / sensor.yaml / camchain.yaml in the folder.
 //           The MonoSLAM Davison sequence is one: frames/*.pgm + camera.json (give rate 30 Hz, see calibration.hpp).
 //   video   a video file read with OpenCV; calibration from the option or next to the file.
+//   rosbag  a ROS1 bag (sensor_msgs/Image or CompressedImage and sensor_msgs/Imu topics, EuRoC's names by
+//           default); calibration from the option (a file or an EuRoC folder) or next to the bag. Only in builds
+//           with ROS (rosbag_source.hpp); detected by the .bag extension.
 #include <memory>
 #include <optional>
 #include <string>
@@ -32,18 +35,24 @@ struct DatasetOptions {
   int max_imu_dropout = 3;         // more missing IMU samples than this in a row is a gap (reported)
   double start_offset_s = 0.0;     // start this many seconds after the stream's first measurement (WindowSource)
   double duration_s = 0.0;         // stop after this many seconds (0: to the end)
+  // rosbag: the image topic of each streamed camera, in the order of `cameras` (empty: /camN/image_raw for each
+  // N, EuRoC's names); the IMU topic (empty: no IMU); stamps from the bag's receive times instead of the messages'
+  // header stamps.
+  std::vector<std::string> image_topics;
+  std::string imu_topic = "/imu0";
+  bool bag_receive_time = false;
 };
 
 struct Dataset {
   std::string name;  // e.g. "euroc-v101-static"
-  std::string kind;  // "euroc", "tum", "kitti", "images", "video"
+  std::string kind;  // "euroc", "tum", "kitti", "images", "video", "rosbag"
   std::string path;  // the dataset root as opened
   std::unique_ptr<Source> source;
   Rig rig;
   std::optional<Trajectory> ground_truth;  // T_WR of the robot frame (IMU on EuRoC, camera 0 on KITTI/TUM)
 };
 
-/// Detects the kind of a path ("euroc", "tum", "kitti", "images", "video"); throws IoError when it cannot.
+/// Detects the kind of a path ("euroc", "tum", "kitti", "images", "video", "rosbag"); throws IoError when it cannot.
 std::string detect_dataset_kind(const std::string& path);
 
 /// Opens "KIND:PATH" or "PATH". Throws IoError/ConfigError/DataError naming the file and the problem.

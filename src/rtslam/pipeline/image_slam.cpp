@@ -5,10 +5,8 @@
 #include <optional>
 #include <variant>
 
-#include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
@@ -20,6 +18,8 @@
 #include "rtslam/pipeline/vi_init.hpp"
 #include "rtslam/slam/health.hpp"
 #include "rtslam/slam/system.hpp"
+#include "rtslam/viz/overlay.hpp"
+#include "rtslam/viz/report.hpp"
 
 namespace rtslam::pipeline {
 
@@ -186,27 +186,18 @@ io::Dataset make_sim_dataset(const ImageSlamOptions& o) {
 
 namespace {
 
-void write_overlay(const std::string& path, const cv::Mat& grey,
-                   const std::vector<strategies::ActiveSearchDataManager::FrameMatch>& matches, double n_sigma) {
-  cv::Mat img;
-  cv::cvtColor(grey, img, cv::COLOR_GRAY2BGR);
-  for (const auto& m : matches) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m.S);
-    const Eigen::Vector2d ev = es.eigenvalues().cwiseMax(0.0).cwiseSqrt() * n_sigma;
-    const Eigen::Vector2d axis = es.eigenvectors().col(1);
-    const double angle_deg = std::atan2(axis.y(), axis.x()) * 180.0 / M_PI;
-    cv::ellipse(img, cv::RotatedRect(cv::Point2f(static_cast<float>(m.h.x()), static_cast<float>(m.h.y())),
-                                     cv::Size2f(static_cast<float>(2 * ev[1]), static_cast<float>(2 * ev[0])),
-                                     static_cast<float>(angle_deg)),
-                cv::Scalar(255, 128, 0), 1, cv::LINE_AA);
-    if (!m.matched) continue;
-    const cv::Scalar colour = m.ransac_inlier ? cv::Scalar(0, 255, 255)
-                              : m.updated     ? cv::Scalar(0, 255, 0)
-                                              : cv::Scalar(0, 0, 255);
-    cv::circle(img, cv::Point(static_cast<int>(std::lround(m.z.x())), static_cast<int>(std::lround(m.z.y()))), 3,
-               colour, 1, cv::LINE_AA);
+// slam/overlay_frame: the PNG of one frame, drawn by viz (the same drawing as `rtslam run --overlays`).
+void write_overlay(const std::string& path, const ImageSlamFrame& frame, double n_sigma) {
+  viz::OverlayOptions oo;
+  oo.n_sigma = n_sigma;
+  const cv::Mat img = viz::draw_overlay(viz::make_report(frame, *frame.image, frame.stats, frame.grid), oo);
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path, img);
+  } catch (const cv::Exception& e) {
+    throw IoError(fmt::format("{}: cannot write the overlay image ({})", path, e.what()));
   }
-  if (!cv::imwrite(path, img)) throw IoError(fmt::format("{}: cannot write the overlay image", path));
+  if (!ok) throw IoError(fmt::format("{}: cannot write the overlay image", path));
 }
 
 }  // namespace
@@ -426,7 +417,6 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
     raw.t = t;
     raw.image = vision::ImageView{image.data, image.cols, image.rows, static_cast<int>(image.step[0])};
     slam::FrameStats& fs = result.frames.emplace_back(system.process(raw));
-    if (done == o.overlay_frame) write_overlay(o.overlay_path, image, dm.last_frame(), o.search.n_sigma);
     StampedPose est;
     est.t = t;
     const math::Pose T_WR = robot->pose();
@@ -462,7 +452,11 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
         }
       }
     }
-    if (observer) observer(ImageSlamFrame{done, t, &map, &dm.last_frame()});
+    if (observer || done == o.overlay_frame) {
+      const ImageSlamFrame f{done, t, &map, &dm.last_frame(), &image, &fs, &dm.grid()};
+      if (done == o.overlay_frame) write_overlay(o.overlay_path, f, o.search.n_sigma);
+      if (observer) observer(f);
+    }
     ++done;
     if (o.max_frames > 0 && done >= o.max_frames) stop = true;
   };

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/core.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include "rtslam/core/trajectory.hpp"
@@ -57,9 +58,8 @@ struct ImageSlamOptions {
   double rate_hz = 0.0;               // image rate for image folders without timestamps (0: the dataset's)
   std::string known_landmarks;        // folder of a known-landmark set (known_landmarks.hpp); empty: none
   std::string known_landmarks_convention = "robot";  // that set's state: robot (as is) | scenelib (converted)
-  int overlay_frame = -1;             // write a PNG overlay of this image (0-based; -1: none) ...
-  std::string overlay_path;           // ... to this file: 3σ search ellipses (blue), matches (green: updated,
-                                      // yellow: RANSAC inlier, red: matched but rejected), new landmarks not drawn
+  int overlay_frame = -1;             // write a PNG overlay of this image (0-based; -1: none) to overlay_path,
+  std::string overlay_path;           // drawn by viz::draw_overlay (the overlay of `rtslam run --overlays`)
   std::string sim_preset = "handheld";  // simulator preset or YAML file, for runs without a dataset
   double sim_duration_s = 0.0;           // simulated seconds (0: the preset's)
   models::ConstantVelocityParams motion;
@@ -118,13 +118,20 @@ struct ImageSlamResult {
 /// `options.seed` and `options.sim_duration_s` when > 0, as an in-memory dataset rendered on the fly.
 io::Dataset make_sim_dataset(const ImageSlamOptions& options);
 
-/// What an observer sees after each processed image: the map (estimates, landmarks with their descriptors) and
-/// the data manager's report of every visible landmark in that image.
+/// What an observer sees after each processed image: the map (estimates, landmarks with their descriptors; the
+/// robot's pose is map->robots().front()->pose()), the data manager's report of every visible landmark in that
+/// image, the image itself, the frame's statistics and the init grid. Every pointer is valid during the call only:
+/// keep what outlives it by copy — except the image, whose cv::Mat may be copied (reference counted, no pixel
+/// copy: the sources give every image its own pixels and never write into them; viz::make_report does so).
+/// Building it costs nothing (pointers on the stack): the frame loop allocates nothing for an observer.
 struct ImageSlamFrame {
   int index = 0;  // processed images before this one (the landmarks' frame_created counts the same)
   TimeNs t = 0;   // image time in the IMU clock (t_cam + t_d)
   const slam::Map* map = nullptr;
   const std::vector<strategies::ActiveSearchDataManager::FrameMatch>* matches = nullptr;
+  const cv::Mat* image = nullptr;              // the 8-bit grey image processed (the source's own cv::Mat)
+  const slam::FrameStats* stats = nullptr;     // this frame's counts and stage timings (also in result.frames)
+  const strategies::InitGrid* grid = nullptr;  // the data manager's init grid as this frame left it
 };
 
 /// Runs the pipeline over a measurement stream and its rig calibration (`name` for messages). `on_frame(done,

@@ -118,6 +118,8 @@ class ActiveSearchDataManager final : public slam::DataManager {
     bool updated = false;        // used in a correction
   };
   const std::vector<FrameMatch>& last_frame() const { return report_; }
+  /// The randomly moving initialization grid as the last frame left it (overlays: viz::make_report).
+  const InitGrid& grid() const { return grid_; }
 
  private:
   struct Candidate {

@@ -1,14 +1,22 @@
 // rtslam run: monocular image SLAM (src/rtslam/pipeline/image_slam.hpp, docs/configuration.md) on a dataset's
 // camera, or, without --dataset (or with --dataset sim:PRESET), on the simulator's images rendered on the fly
 // (default preset: handheld). It writes config.yaml, trajectory.txt, trajectory.csv, groundtruth.txt (when the
-// input has one), frames.csv, map.ply, summary.json and, with --overlay-frame, a PNG overlay.
+// input has one), frames.csv, map.ply, summary.json and, with --overlay-frame, a PNG overlay. What users see
+// (src/rtslam/viz, docs/viewer.md): --view serves the live web viewer while the run goes, --overlays writes one
+// overlay PNG per processed frame (every Nth with --overlay-every), --video the overlays as a video; all three are
+// fed by run_image_slam's observer on the filter thread (viz::make_report shares the image, push never blocks).
 // --points-demo runs the walking skeleton instead: simulated point measurements with known association
 // (src/rtslam/pipeline/point_demo.hpp), which writes trajectory.txt, trajectory.csv, groundtruth.txt, frames.csv
 // and summary.json.
 #include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <iostream>
 #include <limits>
+#include <optional>
+#include <thread>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -24,6 +32,9 @@
 #include "rtslam/pipeline/demo_config.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
 #include "rtslam/pipeline/point_demo.hpp"
+#include "rtslam/viz/overlay.hpp"
+#include "rtslam/viz/report.hpp"
+#include "rtslam/viz/viewer.hpp"
 
 namespace rtslam::cli {
 namespace {
@@ -43,6 +54,127 @@ struct RunOptions {
   std::optional<int> overlay_frame;
   bool points_demo = false;
   bool quiet = false;
+  // What users see (docs/viewer.md).
+  std::optional<std::string> view;     // --view [ADDR:PORT]: serve the live viewer on this address
+  std::optional<double> view_hold_s;   // after the run: serve this many seconds (default: until Ctrl-C)
+  std::optional<std::string> overlays;  // --overlays [DIR]: PNG per frame (empty: OUT/overlays)
+  int overlay_every = 1;
+  std::string video;                   // --video FILE
+};
+
+// Ctrl-C / SIGTERM while the viewer keeps serving after the run (names distinct from cmd_view's: unity build).
+std::atomic<bool> g_run_viewer_stop{false};
+extern "C" void on_run_viewer_signal(int) { g_run_viewer_stop = true; }
+
+// --view, --overlays, --video: the run's observer. Opened before the run, so that a port in use, an unwritable
+// folder or an unknown video extension fail at once with one line (IoError naming the address or the path); a
+// codec OpenCV lacks fails at the second frame (the video opens when it knows the rate).
+class RunDisplays {
+ public:
+  RunDisplays(const RunOptions& ro, const pipeline::ImageSlamOptions& o) {
+    viz::OverlayOptions oo;
+    oo.n_sigma = o.search.n_sigma;  // the drawn ellipse is the searched one
+    every_ = ro.overlay_every;
+    if (ro.overlays) overlays_.emplace(ro.overlays->empty() ? ro.out + "/overlays" : *ro.overlays, oo);
+    if (!ro.video.empty()) video_.emplace(ro.video, 0.0, oo);
+    video_file_ = ro.video;
+    if (ro.view) {
+      viz::ViewerOptions vo;
+      vo.address = ro.view->empty() ? std::string("127.0.0.1:0") : *ro.view;
+      vo.overlay = oo;
+      vo.validate();
+      viewer_.emplace(vo);
+      std::cout << "viewer: " << viewer_->url() << std::endl;
+    }
+  }
+  /// The run's input, once opened: the page's title and ground truth.
+  void attach(const io::Dataset& ds, std::uint64_t seed) {
+    if (viewer_) {
+      viewer_->set_title(fmt::format("{} ({}), seed {}", ds.name, ds.kind, seed));
+      if (ds.ground_truth) viewer_->set_ground_truth(*ds.ground_truth);
+    }
+    const auto total = ds.source->image_count();
+    if (total) observer_us_.reserve(*total);
+  }
+  bool active() const { return viewer_ || overlays_ || video_; }
+
+  /// On the filter thread, after each processed image.
+  void on_frame(const pipeline::ImageSlamFrame& f) {
+    const bool png = overlays_ && f.index % every_ == 0;
+    if (!png && !video_ && !viewer_) return;
+    const auto t0 = std::chrono::steady_clock::now();
+    viz::FrameReport r = viz::make_report(f, *f.image, f.stats, f.grid);
+    if (png) overlays_->write(r);
+    if (video_) video_->write(r);
+    if (viewer_) viewer_->push(std::move(r));
+    observer_us_.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+  }
+
+  /// After the run: closes the files (errors surface here) and tells the browsers the run has ended.
+  void finish_run() {
+    if (overlays_) overlays_->close();
+    if (video_) video_->close();
+    if (viewer_) viewer_->finish();
+  }
+
+  /// One line for the run's report ("" when nothing is shown) and the summary's "viz" entry.
+  std::string report_line(nlohmann::json& summary) const {
+    if (!active()) return {};
+    const io::Percentiles p = io::percentiles(observer_us_);
+    nlohmann::json j = {{"observer_us", io::to_json(p)}};
+    std::string what;
+    if (viewer_) {
+      const viz::ViewerStats vs = viewer_->stats();
+      j["viewer"] = {{"url", viewer_->url()}, {"pushed", vs.pushed}, {"dropped", vs.dropped},
+                     {"frames_sent", vs.frames_sent}};
+      what += fmt::format("viewer {} ({} frames pushed, {} skipped by the viewer)", viewer_->url(), vs.pushed,
+                          vs.dropped);
+    }
+    if (overlays_) {
+      j["overlays"] = {{"dir", overlays_->dir()}, {"frames", overlays_->frames_written()}, {"every", every_}};
+      what += fmt::format("{}{} overlay PNGs in {}/", what.empty() ? "" : ", ", overlays_->frames_written(),
+                          overlays_->dir());
+    }
+    if (video_) {
+      j["video"] = {{"file", video_file_}, {"frames", video_->frames_written()}};
+      what += fmt::format("{}video {} ({} frames)", what.empty() ? "" : ", ", video_file_, video_->frames_written());
+    }
+    summary["viz"] = j;
+    return fmt::format("  display: {}; observer {:.1f} us per frame (median; p90 {:.1f}, max {:.1f})\n", what,
+                       p.median, p.p90, p.max);
+  }
+
+  /// --view: keeps serving after the run until Ctrl-C / SIGTERM, or for --view-hold seconds.
+  void hold(const RunOptions& ro) {
+    if (!viewer_) return;
+    if (ro.view_hold_s && *ro.view_hold_s <= 0.0) return;
+    g_run_viewer_stop = false;
+    std::signal(SIGINT, on_run_viewer_signal);
+    std::signal(SIGTERM, on_run_viewer_signal);
+    std::cout << "viewer: the run has ended; still serving " << viewer_->url()
+              << (ro.view_hold_s ? fmt::format(" for {:g} s", *ro.view_hold_s) : std::string(" until Ctrl-C"))
+              << std::endl;
+    const auto start = std::chrono::steady_clock::now();
+    while (!g_run_viewer_stop) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (ro.view_hold_s &&
+          std::chrono::steady_clock::now() - start > std::chrono::duration<double>(*ro.view_hold_s)) {
+        break;
+      }
+    }
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
+    viewer_->stop();
+    std::cout << "viewer: stopped" << std::endl;
+  }
+
+ private:
+  int every_ = 1;
+  std::optional<viz::OverlayWriter> overlays_;
+  std::optional<viz::VideoWriter> video_;
+  std::optional<viz::Viewer> viewer_;
+  std::string video_file_;
+  std::vector<double> observer_us_;
 };
 
 io::FrameStats to_io(const slam::FrameStats& s) {
@@ -154,6 +286,7 @@ void run_dataset(const RunOptions& ro) {
     std::cout << YAML::Dump(pipeline::to_yaml(o)) << '\n';
     return;
   }
+  RunDisplays displays(ro, o);  // before the input: a port in use or a bad path fails at once
   io::DatasetOptions dopt;
   dopt.use_imu = o.robot == "inertial";
   dopt.cameras = {o.camera};
@@ -166,14 +299,18 @@ void run_dataset(const RunOptions& ro) {
   }
   std::filesystem::create_directories(ro.out);
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
+  displays.attach(ds, o.seed);
 
   const auto total = ds.source->image_count();
   io::ProgressLine progress(total ? *total : 0, nullptr, ro.quiet ? std::optional<bool>(false) : std::nullopt);
   pipeline::ImageSlamOptions run_o = o;
   run_o.camera = 0;  // the Rig holds the selected camera only
-  const auto result =
-      pipeline::run_image_slam(ds, run_o, [&](int done, int) { progress.update(static_cast<size_t>(done)); });
+  std::function<void(const pipeline::ImageSlamFrame&)> observer;  // none without a display: nothing per frame
+  if (displays.active()) observer = [&](const pipeline::ImageSlamFrame& f) { displays.on_frame(f); };
+  const auto result = pipeline::run_image_slam(
+      ds, run_o, [&](int done, int) { progress.update(static_cast<size_t>(done)); }, observer);
   progress.finish();
+  displays.finish_run();
 
   io::write_tum(ro.out + "/trajectory.txt", result.estimate);
   io::write_trajectory_csv(ro.out + "/trajectory.csv", result.estimate);
@@ -302,13 +439,14 @@ void run_dataset(const RunOptions& ro) {
       accuracy_line = fmt::format("  ATE not computed: {}\n", e.what());
     }
   }
+  const std::string display_line = displays.report_line(summary);
   io::write_summary_json(ro.out + "/summary.json", summary);
   std::cout << fmt::format(
       "rtslam run on {} ({}), seed {}: {} frames\n"
       "  landmarks: {} in map at the end ({} Euclidean), {} created; matched per frame: min {} ({} after 1 s)\n"
       "  per-frame time: median {:.3f} ms, p90 {:.3f} ms, max {:.3f} ms (stage medians: predict {:.3f}, match "
       "{:.3f}, ransac {:.3f}, update {:.3f}, init {:.3f}, map {:.3f})\n"
-      "{}{}  outputs in {}/\n",
+      "{}{}{}  outputs in {}/\n",
       ds.name, ds.kind, o.seed, result.frames.size(), result.landmarks_final, result.euclidean_final,
       result.landmarks_created, result.frames.empty() ? 0 : min_matched,
       min_matched_after_1s == std::numeric_limits<int>::max() ? 0 : min_matched_after_1s, timing.median, timing.p90,
@@ -323,7 +461,9 @@ void run_dataset(const RunOptions& ro) {
                         result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
                         result.imu_accel_saturated, result.images_before_start)
           : std::string()),
-      ro.out);
+      display_line, ro.out);
+  std::cout << std::flush;
+  displays.hold(ro);
   if (result.final_health != slam::Health::Ok) {
     throw DataError(fmt::format("the run ended with tracking {} ({} re-initialization(s) did not recover it); outputs "
                                 "in {}/ describe a broken estimate", slam::to_string(result.final_health),
@@ -354,8 +494,27 @@ void register_run(CLI::App& app) {
   sub->add_option("--points", opts->points, "--points-demo: number of 3D points in the room (default 500)")
       ->check(CLI::Range(10, 100000));
   sub->add_option("--overlay-frame", opts->overlay_frame,
-                  "Dataset runs: write OUT/overlay_NNNNN.png of this image (0-based) with search ellipses and matches")
+                  "Write OUT/overlay_NNNNN.png of this image (0-based): the --overlays drawing of one frame "
+                  "(slam/overlay_frame)")
       ->check(CLI::NonNegativeNumber);
+  sub->add_option("--view", opts->view,
+                  "Serve the live web viewer on ADDR:PORT or PORT while the run goes (default 127.0.0.1:0: "
+                  "loopback, a free port; the URL is printed). The run never waits for a browser; afterwards "
+                  "the viewer keeps serving until Ctrl-C (see --view-hold). docs/viewer.md")
+      ->expected(0, 1);
+  sub->add_option("--view-hold", opts->view_hold_s,
+                  "--view: after the run, keep serving this many seconds (0: stop at once; default: until Ctrl-C)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--overlays", opts->overlays,
+                  "Write one overlay PNG per processed frame (search ellipses, matches, new landmarks, init grid) "
+                  "and index.csv into DIR (default OUT/overlays, which rtslam view OUT shows)")
+      ->expected(0, 1);
+  sub->add_option("--overlay-every", opts->overlay_every, "--overlays: write every Nth frame only")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--video", opts->video,
+                  "Write the overlays of every frame as a video: .avi/.mkv (MJPG), .mp4/.m4v/.mov (H.264, else "
+                  "MPEG-4), .webm (VP8)");
   sub->add_option("--groundtruth", opts->groundtruth,
                   "Reference trajectory (TUM, EuRoC state CSV, KITTI) for the accuracy report after the run; the "
                   "estimator never reads it")
@@ -369,10 +528,15 @@ void register_run(CLI::App& app) {
   sub->callback([opts] {
     if (opts->points_demo) {
       if (!opts->dataset.empty()) throw ConfigError("--points-demo and --dataset exclude each other");
+      if (opts->view || opts->overlays || !opts->video.empty() || opts->overlay_frame) {
+        throw ConfigError("--view, --overlays, --video and --overlay-frame show image runs: not --points-demo");
+      }
       run_demo(*opts);
       return;
     }
     if (opts->points) throw ConfigError("--points applies to --points-demo only");
+    if (opts->view_hold_s && !opts->view) throw ConfigError("--view-hold applies to --view only");
+    if (opts->overlay_every != 1 && !opts->overlays) throw ConfigError("--overlay-every applies to --overlays only");
     run_dataset(*opts);
   });
 }

@@ -1,12 +1,21 @@
 // End-to-end tests of the rtslam command line: exit codes, one-line errors, outputs, reproducibility.
 #include <array>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
 
 namespace {
 
@@ -49,8 +58,33 @@ int count_lines(const std::string& s) {
   return n;
 }
 
+/// GET `path` from 127.0.0.1:port over a plain socket (HTTP/1.0): the whole response, headers included ("" if the
+/// connection fails).
+std::string http_get(int port, const std::string& path) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return {};
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string response;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0) {
+    const std::string req = "GET " + path + " HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
+    if (::send(fd, req.data(), req.size(), 0) == static_cast<ssize_t>(req.size())) {
+      std::array<char, 4096> buf{};
+      ssize_t n = 0;
+      while ((n = ::recv(fd, buf.data(), buf.size(), 0)) > 0) response.append(buf.data(), static_cast<size_t>(n));
+    }
+  }
+  ::close(fd);
+  return response;
+}
+
+/// Processed frames of a run folder (rows of frames.csv after its header).
+int frames_of(const fs::path& out) { return count_lines(read_file(out / "frames.csv")) - 1; }
+
 TEST(Cli, EverySubcommandHasHelp) {
-  for (const char* sub : {"run", "simulate", "eval", "batch", "report", "bench", "imu-noise"}) {
+  for (const char* sub : {"run", "simulate", "eval", "batch", "report", "bench", "imu-noise", "view"}) {
     const Result r = run(std::string(sub) + " --help");
     EXPECT_EQ(r.code, 0) << sub << ": " << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub;
@@ -129,6 +163,138 @@ TEST(Cli, DumpConfigPrintsTheEffectiveConfiguration) {
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("seed: 9"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("d_min"), std::string::npos);
+}
+
+TEST(Cli, RunWritesOverlayPngsEveryNthFrameAndTheVideoOfEveryFrame) {
+  const fs::path a = temp_dir("overlays");
+  const Result r = run("run --duration 2 --seed 1 --quiet --out " + a.string() + " --overlays --overlay-every 3 --video " +
+                       (a / "run.avi").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const int frames = frames_of(a);
+  ASSERT_GT(frames, 20) << r.out;
+  int pngs = 0;
+  fs::path first;
+  for (const auto& e : fs::directory_iterator(a / "overlays")) {
+    if (e.path().extension() != ".png") continue;
+    ++pngs;
+    if (first.empty() || e.path() < first) first = e.path();
+  }
+  EXPECT_EQ(pngs, (frames + 2) / 3) << "frames 0, 3, 6, ... of " << frames;
+  EXPECT_EQ(count_lines(read_file(a / "overlays" / "index.csv")), pngs + 1);
+  EXPECT_NE(r.out.find("overlay PNGs"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("observer"), std::string::npos) << r.out;
+  EXPECT_EQ(first.filename().string().rfind("frame_000000_", 0), 0u) << first;
+  const cv::Mat png = cv::imread(first.string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(png.empty()) << first;
+  EXPECT_GT(png.cols, 100);
+  EXPECT_GT(cv::norm(png), 0.0);
+  cv::VideoCapture video((a / "run.avi").string());
+  ASSERT_TRUE(video.isOpened());
+  int decoded = 0;
+  cv::Mat img;
+  while (video.read(img)) {
+    if (decoded == 0) {
+      EXPECT_EQ(img.size(), png.size());
+    }
+    ++decoded;
+  }
+  EXPECT_EQ(decoded, frames) << "the video has every frame";
+  // The same drawing as one PNG through the config key (and its --overlay-frame alias).
+  const Result one = run("run --duration 1 --seed 1 --quiet --overlay-frame 3 --out " + a.string() + "/one");
+  ASSERT_EQ(one.code, 0) << one.out;
+  EXPECT_FALSE(cv::imread((a / "one" / "overlay_00003.png").string()).empty());
+}
+
+TEST(Cli, RunVideoAsMp4OrAOneLineErrorNamingTheCodecs) {
+  const fs::path a = temp_dir("video_mp4");
+  const Result r = run("run --duration 1 --seed 1 --quiet --out " + a.string() + " --video " + (a / "run.mp4").string());
+  if (r.code != 0) {
+    // OpenCV without an MPEG-4 encoder: one clear line naming the file and the codecs tried.
+    EXPECT_NE(r.out.find("run.mp4"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("codecs tried"), std::string::npos) << r.out;
+    EXPECT_EQ(count_lines(r.out), 1) << r.out;
+    GTEST_SKIP() << "OpenCV cannot write .mp4 here: " << r.out;
+  }
+  cv::VideoCapture video((a / "run.mp4").string());
+  ASSERT_TRUE(video.isOpened());
+  cv::Mat img;
+  EXPECT_TRUE(video.read(img));
+  EXPECT_GT(img.cols, 100);
+}
+
+TEST(Cli, RunDisplayErrorsAreOneLineNamingThePathOrThePort) {
+  const Result dir = run("run --duration 1 --quiet --out " + temp_dir("bad_overlays").string() +
+                         " --overlays /proc/rtslam_cannot_be_here");
+  EXPECT_NE(dir.code, 0);
+  EXPECT_NE(dir.out.find("/proc/rtslam_cannot_be_here"), std::string::npos) << dir.out;
+  EXPECT_EQ(count_lines(dir.out), 1) << dir.out;
+  const Result ext = run("run --duration 1 --quiet --out " + temp_dir("bad_video").string() + " --video x.gif");
+  EXPECT_NE(ext.code, 0);
+  EXPECT_NE(ext.out.find("x.gif"), std::string::npos) << ext.out;
+  EXPECT_EQ(count_lines(ext.out), 1) << ext.out;
+  // A port in use: this test holds it.
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  ASSERT_EQ(::listen(fd, 1), 0);
+  socklen_t len = sizeof a;
+  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len), 0);
+  const int port = ntohs(a.sin_port);
+  const Result busy = run("run --duration 1 --quiet --out " + temp_dir("busy").string() + " --view 127.0.0.1:" +
+                          std::to_string(port));
+  ::close(fd);
+  EXPECT_NE(busy.code, 0);
+  EXPECT_NE(busy.out.find(std::to_string(port)), std::string::npos) << busy.out;
+  EXPECT_EQ(count_lines(busy.out), 1) << busy.out;
+  const Result addr = run("run --duration 1 --quiet --view nowhere:80");
+  EXPECT_NE(addr.code, 0);
+  EXPECT_NE(addr.out.find("nowhere:80"), std::string::npos) << addr.out;
+}
+
+// `run --view`: the URL is printed before the run, the page is served while the run goes and after it (until
+// SIGTERM / Ctrl-C), every frame was pushed, and the run's outputs are the same as without the viewer.
+TEST(Cli, RunViewServesThePageDuringAndAfterTheRunAndStopsOnSigterm) {
+  const fs::path a = temp_dir("view");
+  // --view-hold 60: a safety net; the test stops it with SIGTERM. The shell prints its pid, then becomes rtslam.
+  const std::string cmd = "sh -c 'echo pid $$; exec " + std::string(RTSLAM_CLI) + " run --duration 2 --seed 1 --quiet --out " +
+                          a.string() + " --view --view-hold 60' 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::array<char, 4096> buf{};
+  std::string out, page, status;
+  int pid = -1, port = -1;
+  bool stopped = false;
+  while (fgets(buf.data(), static_cast<int>(buf.size()), p)) {
+    const std::string line = buf.data();
+    out += line;
+    std::smatch m;
+    if (line.rfind("pid ", 0) == 0) pid = std::stoi(line.substr(4));
+    if (port < 0 && std::regex_search(line, m, std::regex(R"(viewer: http://127\.0\.0\.1:(\d+)/)"))) {
+      port = std::stoi(m[1]);
+      page = http_get(port, "/");
+    }
+    if (line.find("still serving") != std::string::npos && !stopped) {
+      status = http_get(port, "/api/status");
+      if (pid > 0) ::kill(pid, SIGTERM);
+      stopped = true;
+    }
+  }
+  const int code = pclose(p);
+  ASSERT_TRUE(WIFEXITED(code)) << out;
+  EXPECT_EQ(WEXITSTATUS(code), 0) << out;
+  ASSERT_GT(port, 0) << out;
+  EXPECT_NE(page.find("200 OK"), std::string::npos) << page.substr(0, 300);
+  EXPECT_NE(page.find("<html"), std::string::npos) << page.substr(0, 300);
+  EXPECT_TRUE(stopped) << out;
+  const int frames = frames_of(a);
+  EXPECT_NE(status.find("\"pushed\":" + std::to_string(frames)), std::string::npos) << status << " (" << frames << " frames)";
+  EXPECT_NE(status.find("\"finished\":true"), std::string::npos) << status;
+  EXPECT_NE(out.find("viewer: stopped"), std::string::npos) << out;
+  EXPECT_NE(out.find("observer"), std::string::npos) << out;
+  EXPECT_NE(read_file(a / "summary.json").find("\"viz\""), std::string::npos);
 }
 
 TEST(Cli, ImuNoiseWithoutGroundTruthIsOneLineNamingTheStateFile) {

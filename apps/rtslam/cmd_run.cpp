@@ -501,20 +501,23 @@ void register_run(CLI::App& app) {
                   "Serve the live web viewer on ADDR:PORT or PORT while the run goes (default 127.0.0.1:0: "
                   "loopback, a free port; the URL is printed). The run never waits for a browser; afterwards "
                   "the viewer keeps serving until Ctrl-C (see --view-hold). docs/viewer.md")
-      ->expected(0, 1);
+      ->expected(0, 1)
+      ->type_name("[ADDR:PORT]");
   sub->add_option("--view-hold", opts->view_hold_s,
                   "--view: after the run, keep serving this many seconds (0: stop at once; default: until Ctrl-C)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--overlays", opts->overlays,
                   "Write one overlay PNG per processed frame (search ellipses, matches, new landmarks, init grid) "
                   "and index.csv into DIR (default OUT/overlays, which rtslam view OUT shows)")
-      ->expected(0, 1);
+      ->expected(0, 1)
+      ->type_name("[DIR]");
   sub->add_option("--overlay-every", opts->overlay_every, "--overlays: write every Nth frame only")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   sub->add_option("--video", opts->video,
                   "Write the overlays of every frame as a video: .avi/.mkv (MJPG), .mp4/.m4v/.mov (H.264, else "
-                  "MPEG-4), .webm (VP8)");
+                  "MPEG-4), .webm (VP8)")
+      ->type_name("FILE");
   sub->add_option("--groundtruth", opts->groundtruth,
                   "Reference trajectory (TUM, EuRoC state CSV, KITTI) for the accuracy report after the run; the "
                   "estimator never reads it")

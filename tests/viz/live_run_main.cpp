@@ -1,7 +1,7 @@
 // viz_live_run: a short simulated image-SLAM run (pipeline::run_image_slam on pipeline::make_sim_dataset with
-// config/sim_mono.yaml) that feeds rtslam::viz through the run's observer: the stand-in for `rtslam run --view
-// --overlays --video` used by the browser tests until the CLI is wired (docs/viewer.md), and the measurement of
-// the viewer's cost on the filter.
+// config/sim_mono.yaml) that feeds rtslam::viz through the run's observer as `rtslam run --view --overlays --video`
+// does (apps/rtslam/cmd_run.cpp), with options the browser tests need (--wait-client, --hold on stdin) and the
+// measurement of the viewer's cost on the filter (make_report and push timed apart; docs/viewer.md).
 //
 //   viz_live_run [--duration S] [--seed N] [--view ADDR:PORT] [--wait-client S] [--overlays DIR] [--video FILE]
 //                [--hold]

@@ -231,7 +231,10 @@ class RosNode : public ::testing::Test {
     }
     EXPECT_EQ(robot_tf, n);
     EXPECT_EQ(camera_tf, n);
-    EXPECT_EQ(client_->map_messages(), n);
+    // The map topic keeps the newest clouds (publisher queue of 2): the visual-inertial start filters its buffered
+    // window in one burst, whose older clouds may be dropped; the last one always arrives.
+    EXPECT_LE(client_->map_messages(), n);
+    EXPECT_GE(client_->map_messages(), 1u);
     EXPECT_EQ(client_->last_map_points(), static_cast<std::size_t>(expected.landmarks_final));
     EXPECT_EQ(client_->last_map_fields(), (std::vector<std::string>{"x", "y", "z", "id"}));
     EXPECT_EQ(io::read_trajectory(dir / "trajectory.txt").poses.size(), n);

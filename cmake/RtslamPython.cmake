@@ -29,6 +29,9 @@ else()
     execute_process(COMMAND ${Python3_EXECUTABLE} -c "import numpy" RESULT_VARIABLE _numpy_rc OUTPUT_QUIET ERROR_QUIET)
     if(_numpy_rc EQUAL 0)
       set(RTSLAM_PYTHON_NUMPY ON)
+    else()
+      message(STATUS "Python: ${Python3_EXECUTABLE} lacks numpy: test_python is not registered "
+                     "(give -DPython3_EXECUTABLE=/usr/bin/python3, whose python3-numpy scripts/deps.sh installs)")
     endif()
     message(STATUS "Python: ${Python3_EXECUTABLE} (${Python3_VERSION}), pybind11 ${pybind11_VERSION}, "
                    "numpy: ${RTSLAM_PYTHON_NUMPY}; building the rtslam module")

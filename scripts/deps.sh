@@ -8,6 +8,8 @@ packages=(
   libcivetweb-dev nodejs
   # ROS1 (optional at build time, RTSLAM_WITH_ROS; docs/ros.md): bags, the rtslam_ros node, rosmaster for its test
   librosbag-storage-dev libroscpp-dev libsensor-msgs-dev libnav-msgs-dev libtf2-msgs-dev python3-rosmaster
+  # Python bindings (optional at build time, RTSLAM_PYTHON; docs/python.md): pybind11, the headers, numpy for the tests
+  pybind11-dev python3-dev python3-numpy
 )
 # npm fetches the viewer's three.js at build time; Debian's nodejs lacks it, NodeSource's ships it.
 command -v npm >/dev/null 2>&1 || packages+=(npm)

@@ -9,7 +9,11 @@ cd "$(dirname "$0")/.."
 bash scripts/deps.sh
 jobs=$(nproc)
 
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DRTSLAM_WERROR=ON
+# Debian's interpreter for the Python module and its test (deps.sh installs its numpy; a python3 found first on the
+# PATH, e.g. pyenv's, may lack it and test_python would then not be registered).
+python_opt=()
+[[ -x /usr/bin/python3 ]] && python_opt=(-DPython3_EXECUTABLE=/usr/bin/python3)
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DRTSLAM_WERROR=ON "${python_opt[@]}"
 cmake --build build -j "$jobs"
 ctest --test-dir build -LE slow --output-on-failure -j "$jobs"
 

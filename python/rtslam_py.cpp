@@ -1,0 +1,255 @@
+// The `rtslam` Python module (docs/python.md): image SLAM on a dataset or the simulator, its trajectory, map and
+// per-frame statistics as numpy arrays, and the ATE of the eval module.
+//
+// Arrays: a trajectory is N×8, rows [t (s), x y z (m), qw qx qy qz] of T_WR (robot R in world W), the layout of
+// TUM files with the quaternion scalar first; landmarks M×3 Euclidean positions in W (m).
+// Errors: rtslam::ConfigError → rtslam.ConfigError (a ValueError), IoError → rtslam.IoError (an OSError), DataError
+// and InvariantError → rtslam.DataError / rtslam.InvariantError (RuntimeErrors), with the library's one-line message.
+// The GIL is released while the filter runs; an `on_frame` callback takes it back for its own call.
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <optional>
+#include <string>
+
+#include <yaml-cpp/yaml.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/trajectory.hpp"
+#include "rtslam/eval/metrics.hpp"
+#include "rtslam/io/dataset.hpp"
+#include "rtslam/pipeline/default_config.hpp"
+#include "rtslam/pipeline/image_slam.hpp"
+#include "rtslam/slam/map.hpp"
+#include "rtslam/slam/robot.hpp"
+
+namespace py = pybind11;
+using namespace rtslam;
+
+namespace {
+
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// Trajectory → N×8 [t_s x y z qw qx qy qz].
+Array to_array(const Trajectory& traj) {
+  Array a({static_cast<py::ssize_t>(traj.poses.size()), py::ssize_t{8}});
+  auto m = a.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < traj.poses.size(); ++i) {
+    const StampedPose& s = traj.poses[i];
+    const auto r = static_cast<py::ssize_t>(i);
+    m(r, 0) = to_seconds(s.t);
+    for (int k = 0; k < 3; ++k) m(r, 1 + k) = s.p_WR[k];
+    m(r, 4) = s.q_WR.w();
+    m(r, 5) = s.q_WR.x();
+    m(r, 6) = s.q_WR.y();
+    m(r, 7) = s.q_WR.z();
+  }
+  return a;
+}
+
+// N×8 [t_s x y z qw qx qy qz] → Trajectory (quaternions normalized); ValueError naming `what` on a bad shape.
+Trajectory to_trajectory(const Array& a, const char* what) {
+  if (a.ndim() != 2 || a.shape(1) != 8) {
+    throw ConfigError(std::string(what) + ": expected an N×8 array [t x y z qw qx qy qz]");
+  }
+  Trajectory traj;
+  traj.source = what;
+  auto m = a.unchecked<2>();
+  for (py::ssize_t r = 0; r < a.shape(0); ++r) {
+    StampedPose s;
+    s.t = from_seconds(m(r, 0));
+    s.p_WR = Eigen::Vector3d(m(r, 1), m(r, 2), m(r, 3));
+    s.q_WR = Eigen::Quaterniond(m(r, 4), m(r, 5), m(r, 6), m(r, 7));
+    if (!(s.q_WR.norm() > 0.0)) throw ConfigError(std::string(what) + ": zero quaternion at row " + std::to_string(r));
+    s.q_WR.normalize();
+    traj.poses.push_back(s);
+  }
+  return traj;
+}
+
+// The result of a run, as Python objects (built with the GIL held, after the run).
+struct PyResult {
+  Array trajectory;
+  py::array_t<std::int64_t> timestamps_ns;
+  Array landmarks;
+  py::list frames;
+  py::object ground_truth = py::none();
+  int resets = 0;
+  int frames_lost = 0;
+  int frames_diverged = 0;
+  bool inertial = false;
+  std::string inertial_start;
+  int landmarks_created = 0;
+};
+
+py::dict frame_dict(const slam::FrameStats& f) {
+  py::dict d;
+  d["t"] = to_seconds(f.t);
+  d["t_ns"] = f.t;
+  d["landmarks_in_map"] = f.landmarks_in_map;
+  d["visible"] = f.visible;
+  d["searched"] = f.searched;
+  d["matched"] = f.matched;
+  d["updated"] = f.updated;
+  d["initialized"] = f.initialized;
+  d["ransac_inliers"] = f.ransac_inliers;
+  d["reparametrized"] = f.reparametrized;
+  d["removed"] = f.removed;
+  d["refused"] = f.refused;
+  d["nis"] = f.nis;
+  d["nis_count"] = f.nis_count;
+  d["health"] = f.health;
+  d["reset"] = f.reset;
+  d["time_ms"] = f.time_total_ms;
+  return d;
+}
+
+PyResult to_py(const pipeline::ImageSlamResult& r, const std::optional<Trajectory>& ground_truth) {
+  PyResult out;
+  out.trajectory = to_array(r.estimate);
+  out.timestamps_ns = py::array_t<std::int64_t>(static_cast<py::ssize_t>(r.estimate.poses.size()));
+  auto ts = out.timestamps_ns.mutable_unchecked<1>();
+  for (std::size_t i = 0; i < r.estimate.poses.size(); ++i) ts(static_cast<py::ssize_t>(i)) = r.estimate.poses[i].t;
+  out.landmarks = Array({static_cast<py::ssize_t>(r.landmark_positions.size()), py::ssize_t{3}});
+  auto lm = out.landmarks.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < r.landmark_positions.size(); ++i) {
+    for (int k = 0; k < 3; ++k) lm(static_cast<py::ssize_t>(i), k) = r.landmark_positions[i][k];
+  }
+  for (const slam::FrameStats& f : r.frames) out.frames.append(frame_dict(f));
+  if (ground_truth) out.ground_truth = to_array(*ground_truth);
+  out.resets = r.resets;
+  out.frames_lost = r.frames_lost;
+  out.frames_diverged = r.frames_diverged;
+  out.inertial = r.inertial;
+  out.inertial_start = r.inertial_start;
+  out.landmarks_created = r.landmarks_created;
+  return out;
+}
+
+PyResult run(const pipeline::ImageSlamOptions& options, const std::optional<std::string>& dataset,
+             const std::optional<py::function>& on_frame) {
+  options.validate();
+  std::function<void(const pipeline::ImageSlamFrame&)> observer;
+  if (on_frame) {
+    observer = [&on_frame](const pipeline::ImageSlamFrame& frame) {
+      const math::Pose T_WR = frame.map->robots().front()->pose();
+      Eigen::Matrix<double, 7, 1> pose;
+      pose << T_WR.p, T_WR.q.w(), T_WR.q.x(), T_WR.q.y(), T_WR.q.z();
+      py::gil_scoped_acquire gil;
+      (*on_frame)(frame.index, to_seconds(frame.t), pose);  // a Python exception propagates and ends the run
+    };
+  }
+  io::Dataset ds;
+  pipeline::ImageSlamResult result;
+  {
+    py::gil_scoped_release nogil;
+    if (dataset) {
+      io::DatasetOptions dopt;  // as `rtslam run --dataset`
+      dopt.use_imu = options.robot == "inertial";
+      dopt.cameras = {options.camera};
+      dopt.rate_hz = options.rate_hz;
+      ds = io::open_dataset(*dataset, dopt);
+    } else {
+      ds = pipeline::make_sim_dataset(options);
+    }
+    result = pipeline::run_image_slam(ds, options, {}, observer);
+  }
+  return to_py(result, ds.ground_truth);
+}
+
+py::dict ate(const Array& estimate, const Array& ground_truth, const std::string& align, bool interpolate) {
+  eval::EvalOptions eo;
+  eo.align = eval::parse_alignment(align);
+  eo.with_rpe = false;
+  eo.association.interpolate = interpolate;
+  const eval::EvalResult r =
+      eval::evaluate(to_trajectory(estimate, "estimate"), to_trajectory(ground_truth, "ground_truth"), eo);
+  py::dict d;
+  d["rmse"] = r.ate.trans_m.rmse;
+  d["mean"] = r.ate.trans_m.mean;
+  d["max"] = r.ate.trans_m.max;
+  d["rot_rmse_deg"] = r.ate.rot_deg.rmse;
+  d["scale"] = r.sim3_scale;
+  d["matched"] = r.n_matched;
+  return d;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(rtslam, m) {
+  m.doc() = "rtslam: EKF-SLAM on images and IMU (docs/python.md)";
+
+  // Exceptions: most derived first; the message is the library's one line.
+  static py::exception<ConfigError> config_error(m, "ConfigError", PyExc_ValueError);
+  static py::exception<IoError> io_error(m, "IoError", PyExc_OSError);
+  static py::exception<DataError> data_error(m, "DataError", PyExc_RuntimeError);
+  static py::exception<InvariantError> invariant_error(m, "InvariantError", PyExc_RuntimeError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const ConfigError& e) {
+      config_error(e.what());
+    } catch (const IoError& e) {
+      io_error(e.what());
+    } catch (const DataError& e) {
+      data_error(e.what());
+    } catch (const InvariantError& e) {
+      invariant_error(e.what());
+    } catch (const Error& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+    }
+  });
+
+  py::class_<pipeline::ImageSlamOptions>(m, "Options",
+                                          "ImageSlamOptions: the configuration of a run (docs/configuration.md)")
+      .def(py::init<>(), "RT-SLAM's defaults (not the simulator's tuned config/sim_mono.yaml: see default_options)")
+      .def_readwrite("seed", &pipeline::ImageSlamOptions::seed)
+      .def_readwrite("robot", &pipeline::ImageSlamOptions::robot, "constant_velocity | inertial")
+      .def_readwrite("consistency", &pipeline::ImageSlamOptions::consistency, "none | oc | fej")
+      .def_readwrite("max_frames", &pipeline::ImageSlamOptions::max_frames, "stop after this many images (0: all)")
+      .def_readwrite("camera", &pipeline::ImageSlamOptions::camera)
+      .def_readwrite("rate_hz", &pipeline::ImageSlamOptions::rate_hz)
+      .def_readwrite("sim_preset", &pipeline::ImageSlamOptions::sim_preset, "simulator preset or YAML file")
+      .def_readwrite("sim_duration_s", &pipeline::ImageSlamOptions::sim_duration_s, "simulated s (0: the preset's)")
+      .def("validate", &pipeline::ImageSlamOptions::validate, "raises ConfigError naming the key and the bound")
+      .def("to_yaml", [](const pipeline::ImageSlamOptions& o) { return YAML::Dump(pipeline::to_yaml(o)); },
+           "the effective configuration (rtslam run --dump-config)")
+      .def("__repr__", [](const pipeline::ImageSlamOptions& o) {
+        return "<rtslam.Options robot=" + o.robot + " seed=" + std::to_string(o.seed) + " sim_preset=" + o.sim_preset +
+               ">";
+      });
+
+  m.def("load_config", &pipeline::load_image_slam_config, py::arg("path"),
+        "Options from a YAML file over the defaults; raises IoError/ConfigError naming the file and key.");
+  m.def("default_options", &pipeline::default_sim_options,
+        "The options of `rtslam run` on the simulator (config/sim_mono.yaml as built).");
+
+  py::class_<PyResult>(m, "Result", "The output of rtslam.run")
+      .def_readonly("trajectory", &PyResult::trajectory, "N×8 [t (s), x y z, qw qx qy qz]: T_WR per processed image")
+      .def_readonly("timestamps_ns", &PyResult::timestamps_ns, "int64 image times (ns), the trajectory's")
+      .def_readonly("landmarks", &PyResult::landmarks, "M×3 positions in W (m) of the final map")
+      .def_readonly("frames", &PyResult::frames, "per processed image: a dict of FrameStats (t, matched, time_ms...)")
+      .def_readonly("ground_truth", &PyResult::ground_truth, "N×8 like trajectory, or None")
+      .def_readonly("resets", &PyResult::resets)
+      .def_readonly("frames_lost", &PyResult::frames_lost)
+      .def_readonly("frames_diverged", &PyResult::frames_diverged)
+      .def_readonly("inertial", &PyResult::inertial)
+      .def_readonly("inertial_start", &PyResult::inertial_start, "how the inertial filter started ('' otherwise)")
+      .def_readonly("landmarks_created", &PyResult::landmarks_created)
+      .def("__repr__", [](const PyResult& r) {
+        return "<rtslam.Result poses=" + std::to_string(r.trajectory.shape(0)) +
+               " landmarks=" + std::to_string(r.landmarks.shape(0)) + " resets=" + std::to_string(r.resets) + ">";
+      });
+
+  m.def("run", &run, py::arg("options"), py::arg("dataset") = py::none(), py::arg("on_frame") = py::none(),
+        "Runs image SLAM on dataset 'KIND:PATH' (or 'PATH'), or on the simulator (options.sim_preset) when None.\n"
+        "on_frame(index, t_s, pose) is called after each processed image, pose = [x y z qw qx qy qz] of T_WR.");
+  m.def("ate", &ate, py::arg("estimate"), py::arg("ground_truth"), py::arg("align") = "se3",
+        py::arg("interpolate") = true,
+        "ATE (m) of two N×8 trajectories after alignment (se3 | sim3 | posyaw | origin | none), the ground truth\n"
+        "interpolated at the estimate's times (or nearest within 10 ms): dict(rmse, mean, max, rot_rmse_deg, scale,\n"
+        "matched); scale is the Sim(3) Umeyama scale whatever the alignment.");
+}

@@ -1,0 +1,143 @@
+"""Tests of the rtslam Python module (docs/python.md) on a short simulated sequence.
+
+Run with the module on the path: PYTHONPATH=build/python python3 -m unittest discover -s python/tests
+(ctest -R test_python does so).
+"""
+import os
+import tempfile
+import unittest
+
+import numpy as np
+
+import rtslam
+
+REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+DURATION_S = 5.0  # simulated seconds: ~100 images of the handheld preset (EuRoC cam0 rig, 20 Hz)
+IMAGE_RATE_HZ = 20.0
+
+
+class SimulatedRun(unittest.TestCase):
+    """One monocular run of config/sim_mono.yaml (the handheld preset), shared by the tests of this class."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.options = rtslam.load_config(os.path.join(REPO, "config", "sim_mono.yaml"))
+        cls.options.sim_duration_s = DURATION_S
+        cls.callback_calls = []
+        cls.result = rtslam.run(cls.options, on_frame=lambda i, t, pose: cls.callback_calls.append((i, t, pose)))
+
+    def test_options_round_trip_their_fields(self):
+        self.assertEqual(self.options.sim_preset, "handheld")
+        self.assertEqual(self.options.robot, "constant_velocity")
+        self.assertEqual(self.options.seed, 1)
+        self.assertIn("sim_preset", repr(self.options))
+        self.assertIn("slam:", self.options.to_yaml())
+
+    def test_trajectory_has_one_pose_per_processed_image(self):
+        traj = self.result.trajectory
+        n = traj.shape[0]
+        self.assertEqual(traj.shape, (n, 8))
+        self.assertGreaterEqual(n, 0.9 * DURATION_S * IMAGE_RATE_HZ)
+        self.assertLessEqual(n, DURATION_S * IMAGE_RATE_HZ + 1)
+        self.assertEqual(len(self.result.frames), n)
+        self.assertEqual(self.result.timestamps_ns.dtype, np.int64)
+        np.testing.assert_allclose(self.result.timestamps_ns * 1e-9, traj[:, 0], atol=1e-9)
+        self.assertTrue(np.all(np.diff(traj[:, 0]) > 0))
+        self.assertTrue(np.all(np.isfinite(traj)))
+        np.testing.assert_allclose(np.linalg.norm(traj[:, 4:], axis=1), 1.0, atol=1e-9)
+
+    def test_frames_report_matches_and_times(self):
+        frames = self.result.frames
+        self.assertAlmostEqual(frames[-1]["t"], self.result.trajectory[-1, 0])
+        self.assertGreater(sum(f["matched"] for f in frames), 10 * len(frames))
+        self.assertTrue(all(f["time_ms"] > 0 for f in frames))
+        self.assertEqual(self.result.resets, 0)
+        self.assertFalse(self.result.inertial)
+        self.assertEqual(self.result.inertial_start, "")
+
+    def test_landmarks_are_finite_points_of_the_room(self):
+        lm = self.result.landmarks
+        self.assertEqual(lm.ndim, 2)
+        self.assertEqual(lm.shape[1], 3)
+        self.assertGreater(lm.shape[0], 20)
+        self.assertTrue(np.all(np.isfinite(lm)))
+
+    def test_ate_against_the_ground_truth_is_small(self):
+        gt = self.result.ground_truth
+        self.assertIsNotNone(gt)
+        self.assertEqual(gt.shape[1], 8)
+        # Monocular: the scale is not observable, Sim(3) is the meaningful alignment; SE(3) is finite all the same.
+        sim3 = rtslam.ate(self.result.trajectory, gt, align="sim3")
+        se3 = rtslam.ate(self.result.trajectory, gt, align="se3")
+        self.assertEqual(sim3["matched"], self.result.trajectory.shape[0])
+        self.assertLess(sim3["rmse"], 0.02)  # 2.7 mm on this run (0.07 % of ~4 m); se3 8 mm (scale 0.96)
+        self.assertLess(se3["rmse"], 0.1)
+        self.assertLessEqual(sim3["rmse"], sim3["max"])
+        self.assertTrue(np.isfinite(se3["rmse"]))
+        self.assertLessEqual(sim3["rmse"], se3["rmse"] + 1e-12)
+        self.assertGreater(sim3["scale"], 0.0)
+
+    def test_on_frame_sees_every_processed_image(self):
+        calls = self.callback_calls
+        self.assertEqual(len(calls), self.result.trajectory.shape[0])
+        self.assertEqual([c[0] for c in calls], list(range(len(calls))))
+        last_index, last_t, last_pose = calls[-1]
+        self.assertAlmostEqual(last_t, self.result.trajectory[-1, 0])
+        np.testing.assert_allclose(last_pose, self.result.trajectory[-1, 1:], atol=1e-12)
+
+
+class Api(unittest.TestCase):
+    def test_ate_of_a_trajectory_against_itself_is_zero(self):
+        t = np.arange(20) * 0.1
+        traj = np.zeros((20, 8))  # a helix: the alignment needs points that span more than a line
+        traj[:, 0] = t
+        traj[:, 1:4] = np.stack([np.cos(t), np.sin(t), 0.1 * t], axis=1)
+        traj[:, 4] = 1.0
+        r = rtslam.ate(traj, traj, align="sim3")
+        self.assertAlmostEqual(r["rmse"], 0.0, places=9)
+        self.assertAlmostEqual(r["scale"], 1.0, places=9)
+
+    def test_bad_config_path_raises_naming_the_file(self):
+        path = os.path.join(tempfile.gettempdir(), "rtslam_no_such_config.yaml")
+        with self.assertRaises(rtslam.IoError) as ctx:
+            rtslam.load_config(path)
+        self.assertIn("rtslam_no_such_config.yaml", str(ctx.exception))
+        self.assertIsInstance(ctx.exception, OSError)
+
+    def test_unknown_key_raises_a_value_error_naming_it(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write("slam:\n  no_such_key: 1\n")
+        try:
+            with self.assertRaises(ValueError) as ctx:
+                rtslam.load_config(f.name)
+            self.assertIsInstance(ctx.exception, rtslam.ConfigError)
+            self.assertIn("no_such_key", str(ctx.exception))
+        finally:
+            os.unlink(f.name)
+
+    def test_bad_alignment_and_shapes_raise_value_errors(self):
+        traj = np.zeros((3, 8))
+        traj[:, 4] = 1.0
+        with self.assertRaises(ValueError):
+            rtslam.ate(traj, traj, align="affine")
+        with self.assertRaises(ValueError):
+            rtslam.ate(np.zeros((3, 7)), traj)
+
+    def test_missing_dataset_raises(self):
+        with self.assertRaises((OSError, ValueError)) as ctx:
+            rtslam.run(rtslam.default_options(), dataset="euroc:/nonexistent/rtslam_dataset")
+        self.assertIn("rtslam_dataset", str(ctx.exception))
+
+    def test_exception_in_on_frame_ends_the_run(self):
+        options = rtslam.default_options()
+        options.sim_duration_s = 1.0
+
+        def fail(index, t, pose):
+            raise KeyError("stop here")
+
+        with self.assertRaises(KeyError):
+            rtslam.run(options, on_frame=fail)
+
+
+if __name__ == "__main__":
+    unittest.main()

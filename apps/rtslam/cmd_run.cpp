@@ -57,6 +57,7 @@ struct RunOptions {
   // What users see (docs/viewer.md).
   std::optional<std::string> view;     // --view [ADDR:PORT]: serve the live viewer on this address
   std::optional<double> view_hold_s;   // after the run: serve this many seconds (default: until Ctrl-C)
+  double view_wait_s = 0.0;            // before the run: wait up to this long for a browser to connect
   std::optional<std::string> overlays;  // --overlays [DIR]: PNG per frame (empty: OUT/overlays)
   int overlay_every = 1;
   std::string video;                   // --video FILE
@@ -85,7 +86,19 @@ class RunDisplays {
       vo.validate();
       viewer_.emplace(vo);
       std::cout << "viewer: " << viewer_->url() << std::endl;
+      if (ro.view_wait_s > 0.0) wait_for_browser(ro.view_wait_s);
     }
+  }
+  /// --view-wait: a demo (or a test) that must show the run from its first frame waits for a browser.
+  void wait_for_browser(double seconds) {
+    std::cout << fmt::format("viewer: waiting up to {:g} s for a browser", seconds) << std::endl;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (viewer_->stats().clients == 0 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    std::cout << (viewer_->stats().clients > 0 ? "viewer: a browser is connected; the run starts"
+                                               : "viewer: no browser connected; the run starts anyway")
+              << std::endl;
   }
   /// The run's input, once opened: the page's title and ground truth.
   void attach(const io::Dataset& ds, std::uint64_t seed) {
@@ -503,6 +516,10 @@ void register_run(CLI::App& app) {
                   "the viewer keeps serving until Ctrl-C (see --view-hold). docs/viewer.md")
       ->expected(0, 1)
       ->type_name("[ADDR:PORT]");
+  sub->add_option("--view-wait", opts->view_wait_s,
+                  "--view: before the run, wait up to this many seconds for a browser to connect (default 0: "
+                  "start at once)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--view-hold", opts->view_hold_s,
                   "--view: after the run, keep serving this many seconds (0: stop at once; default: until Ctrl-C)")
       ->check(CLI::NonNegativeNumber);

@@ -1,6 +1,6 @@
 // Browser tests of the web viewer (docs/viewer.md), driven by playwright-core in Debian's headless Chromium.
 //
-//   node browser_test.mjs live   --live-run BIN --node-modules DIR --out DIR [--chromium PATH] [--duration S] [--seed N]
+//   node browser_test.mjs live   --cli BIN --node-modules DIR --out DIR [--chromium PATH] [--duration S] [--seed N]
 //   node browser_test.mjs replay --live-run BIN --cli BIN --node-modules DIR --out DIR [--chromium PATH]
 //
 // live:   starts BIN (viz_live_run: a 4 s simulated run feeding the viewer, the stand-in for `rtslam run --view`),
@@ -103,11 +103,15 @@ const overlayPixels = (page) => page.evaluate(() => {
 });
 
 async function liveTest() {
-  const run = start(args['live-run'], ['--duration', args.duration || '4', '--seed', args.seed || '1', '--view', '127.0.0.1:0',
-    '--wait-client', '60', '--hold']);
+  // The user's command: `rtslam run --view` on a short simulated run; --view-wait so that the page sees it from its
+  // first frame, --view-hold so that it can be checked after the run (SIGTERM ends it).
+  const runDir = path.join(args.out, 'live-run');
+  fs.rmSync(runDir, { recursive: true, force: true });
+  const run = start(args.cli, ['run', '--config', 'config/sim_mono.yaml', '--duration', args.duration || '4',
+    '--seed', args.seed || '1', '--out', runDir, '--view', '127.0.0.1:0', '--view-wait', '60', '--view-hold', '300']);
   let browser;
   try {
-    const urlLine = await until('the viewer URL', () => lineWith(run, 'viewer: '), 60000);
+    const urlLine = await until('the viewer URL', () => lineWith(run, 'viewer: http'), 60000);
     const url = urlLine.slice('viewer: '.length).trim();
     check(/^http:\/\/127\.0\.0\.1:\d+\/$/.test(url), `the viewer serves on loopback (${url})`);
     browser = await launch();
@@ -123,12 +127,13 @@ async function liveTest() {
     }, 60000);
     check(p1.lastImageFrame > p0.lastImageFrame, `the image updates (frame ${p0.lastImageFrame} → ${p1.lastImageFrame}, ${p1.imagesShown} images)`);
     check(p1.sceneRenders > p0.sceneRenders, `the 3D view updates (${p0.sceneRenders} → ${p1.sceneRenders} renders)`);
-    const liveResultSeen = !lineWith(run, 'result: ');
+    const liveResultSeen = !lineWith(run, 'viewer: the run has ended');
     check(liveResultSeen, 'those updates came while the run was still going');
 
-    const result = await until('the end of the run', () => lineWith(run, 'result: '), 120000);
-    const kv = Object.fromEntries(result.slice(8).split(' ').map((s) => s.split('=')));
-    const frames = Number(kv.frames), landmarks = Number(kv.landmarks);
+    await until('the end of the run', () => lineWith(run, 'viewer: the run has ended'), 120000);
+    const summary = JSON.parse(fs.readFileSync(path.join(runDir, 'summary.json'), 'utf8'));
+    const frames = Number(summary.frames), landmarks = Number(summary.landmarks.final);
+    const viewerStats = (summary.viz && summary.viz.viewer) || {};
     const pf = await until('the page to show the last frame', async () => {
       const p = await probe(page);
       return p.finished && p.lastFrame === frames - 1 && p.imagesShown > 0 && p.lastImageFrame === frames - 1 && p;
@@ -145,14 +150,14 @@ async function liveTest() {
     const bottom = await page.evaluate(() => Math.ceil(document.getElementById('plots').getBoundingClientRect().bottom));
     await page.screenshot({ path: shot, clip: { x: 0, y: 0, width: 1500, height: Math.min(1000, bottom) } });
     check(fs.statSync(shot).size > 20000, `screenshot saved: ${shot}`);
-    console.log(`live: ${frames} frames, ${landmarks} landmarks; push median ${kv.push_median_us} us (max ${kv.push_max_us}), make_report median ${kv.make_report_median_us} us; dropped ${kv.dropped}`);
+    console.log(`live: ${frames} frames, ${landmarks} landmarks; viewer ${JSON.stringify(viewerStats)}`);
   } finally {
     if (browser) await browser.context.close();
     if (browser) fs.rmSync(browser.userDataDir, { recursive: true, force: true });
-    run.child.stdin.end();
+    run.child.kill('SIGTERM');  // ends --view-hold
     const { code } = await Promise.race([run.exited, sleep(20000).then(() => ({ code: 'timeout' }))]);
     if (code === 'timeout') run.child.kill('SIGKILL');
-    check(code === 0, `viz_live_run exited cleanly (${code})`);
+    check(code === 0, `rtslam run --view exited cleanly on SIGTERM (${code})`);
   }
 }
 

@@ -72,8 +72,8 @@ struct RunOptions {
 };
 
 // The files of a run in --out (and their .tmp), besides overlays/, overlay_NNNNN.png and the --video file there.
-constexpr std::array<const char*, 7> kRunFiles = {"config.yaml",  "trajectory.txt", "trajectory.csv", "groundtruth.txt",
-                                                  "frames.csv",   "map.ply",        "summary.json"};
+constexpr std::array<const char*, 7> kRunFiles = {"config.yaml", "trajectory.txt", "trajectory.csv", "groundtruth.txt",
+                                                  "frames.csv",  "map.ply",        "summary.json"};
 
 // No mixed runs: the outputs of an earlier run in --out are refused (one line naming them), or removed with --force
 // (exactly those: other files stay). Then creates --out.
@@ -102,8 +102,10 @@ void prepare_out_dir(const RunOptions& ro) {
     std::string names;
     for (size_t i = 0; i < ours.size() && i < 4; ++i) names += (i ? ", " : "") + ours[i].filename().string();
     if (ours.size() > 4) names += ", ...";
-    throw IoError(fmt::format("{}: holds the outputs of an earlier run ({}); rerun with --force to replace them, or "
-                              "choose another --out", ro.out, names));
+    throw IoError(
+        fmt::format("{}: holds the outputs of an earlier run ({}); rerun with --force to replace them, or "
+                    "choose another --out",
+                    ro.out, names));
   }
   for (const auto& p : ours) {
     fs::remove_all(p, ec);
@@ -421,13 +423,10 @@ void run_dataset(const RunOptions& ro) {
     trajectory_csv.close();
     frames_csv.close();
     io::write_tum(ro.out + "/trajectory.txt", result.estimate);
-    if (ds.ground_truth) io::write_tum(ro.out + "/groundtruth.txt", *ds.ground_truth);
-    else if (!ro.groundtruth.empty()) io::write_tum(ro.out + "/groundtruth.txt", io::read_trajectory(ro.groundtruth));
-    {
-      io::FramesCsvWriter frames(ro.out + "/frames.csv");
-      for (const auto& s : result.frames) frames.write(to_io(s));
-      frames.close();
-    }
+    if (ds.ground_truth)
+      io::write_tum(ro.out + "/groundtruth.txt", *ds.ground_truth);
+    else if (!ro.groundtruth.empty())
+      io::write_tum(ro.out + "/groundtruth.txt", io::read_trajectory(ro.groundtruth));
     {
       std::vector<io::MapPoint> pts;
       for (size_t i = 0; i < result.landmark_ids.size(); ++i) {
@@ -450,11 +449,11 @@ void run_dataset(const RunOptions& ro) {
       return io::percentiles(v).median;
     };
     stages = {{"predict", stage_median(&slam::FrameStats::time_predict_ms)},
-                                   {"match", stage_median(&slam::FrameStats::time_match_ms)},
-                                   {"ransac", stage_median(&slam::FrameStats::time_ransac_ms)},
-                                   {"update", stage_median(&slam::FrameStats::time_update_ms)},
-                                   {"init", stage_median(&slam::FrameStats::time_init_ms)},
-                                   {"map", stage_median(&slam::FrameStats::time_map_ms)}};
+              {"match", stage_median(&slam::FrameStats::time_match_ms)},
+              {"ransac", stage_median(&slam::FrameStats::time_ransac_ms)},
+              {"update", stage_median(&slam::FrameStats::time_update_ms)},
+              {"init", stage_median(&slam::FrameStats::time_init_ms)},
+              {"map", stage_median(&slam::FrameStats::time_map_ms)}};
 
     summary["status"] = interrupted ? "interrupted" : "complete";
     summary["mode"] = result.inertial ? "inertial-monocular EKF-SLAM: IMU-driven prediction, active search, one-point "
@@ -482,8 +481,9 @@ void run_dataset(const RunOptions& ro) {
             {"estimate", pose(result.T_RS_estimate)},
             {"std_p_m", v3(result.T_RS_std.head<3>())},
             {"std_theta_deg", v3(result.T_RS_std.tail<3>() * 180.0 / M_PI)},
-            {"change_from_calibration", {{"p_m", (result.T_RS_estimate.p - result.T_RS_calibration.p).norm()},
-                                         {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
+            {"change_from_calibration",
+             {{"p_m", (result.T_RS_estimate.p - result.T_RS_calibration.p).norm()},
+              {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
       }
     }
     {
@@ -522,7 +522,8 @@ void run_dataset(const RunOptions& ro) {
     }
     if (!result.frames.empty()) {
       summary["matched_min"] = min_matched;
-      if (min_matched_after_1s != std::numeric_limits<int>::max()) summary["matched_min_after_1s"] = min_matched_after_1s;
+      if (min_matched_after_1s != std::numeric_limits<int>::max())
+        summary["matched_min_after_1s"] = min_matched_after_1s;
     }
     // Accuracy, when a reference is at hand (--groundtruth, or the dataset's own): evaluation only, after the run.
     std::optional<Trajectory> reference;
@@ -550,8 +551,8 @@ void run_dataset(const RunOptions& ro) {
     // and frames.csv with the rows written so far (unless the error was theirs: then they are gone) — and summary.json
     // says why.
     progress.finish();
-    for (const auto& close : std::initializer_list<std::function<void()>>{[&] { trajectory_csv.close(); },
-                                                                          [&] { frames_csv.close(); }}) {
+    for (const auto& close :
+         std::initializer_list<std::function<void()>>{[&] { trajectory_csv.close(); }, [&] { frames_csv.close(); }}) {
       try {
         close();
       } catch (const std::exception&) {
@@ -597,9 +598,10 @@ void run_dataset(const RunOptions& ro) {
       display_line, ro.out);
   std::cout << std::flush;
   if (const int sig = RunSignals::received()) {
-    std::cerr << fmt::format("rtslam: interrupted by {} after {} frame(s); outputs of what was processed in {}/ "
-                             "(summary.json status {})\n",
-                             signal_name(sig), result.frames.size(), ro.out, interrupted ? "interrupted" : "complete");
+    std::cerr << fmt::format(
+        "rtslam: interrupted by {} after {} frame(s); outputs of what was processed in {}/ "
+        "(summary.json status {})\n",
+        signal_name(sig), result.frames.size(), ro.out, interrupted ? "interrupted" : "complete");
     throw CommandExit{128 + sig};
   }
   displays.hold(ro);

@@ -380,7 +380,7 @@ TEST(Cli, AWriteErrorIsOneLineNamingTheFileAndLeavesNoTruncatedOutput) {
     if (fd < 0) ::_exit(120);
     ::dup2(fd, 1);
     ::dup2(fd, 2);
-    std::signal(SIGXFSZ, SIG_IGN);  // kept across exec
+    std::signal(SIGXFSZ, SIG_IGN);           // kept across exec
     const rlimit lim{32 * 1024, 32 * 1024};  // config.yaml (~3 kB) fits, a 10 s trajectory.csv (~100 kB) does not
     if (::setrlimit(RLIMIT_FSIZE, &lim) != 0) ::_exit(121);
     const std::string out = a.string();

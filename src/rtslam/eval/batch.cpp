@@ -171,9 +171,10 @@ std::string write_command_list(const BatchOptions& o, const std::string& path) {
       cmd.append(shell_quote(a));
     }
     const std::string dir = shell_quote(r.dir);
-    text += fmt::format("{{ [ -f {0}/summary.json ] && ! grep -qE '\"status\": \"(interrupted|failed)\"' "
-                        "{0}/summary.json; }} || {{ mkdir -p {0} && {1} > {0}/run.log 2>&1; }}\n",
-                        dir, cmd);
+    text += fmt::format(
+        "{{ [ -f {0}/summary.json ] && ! grep -qE '\"status\": \"(interrupted|failed)\"' "
+        "{0}/summary.json; }} || {{ mkdir -p {0} && {1} > {0}/run.log 2>&1; }}\n",
+        dir, cmd);
   }
   write_text(path, text);
   return path;

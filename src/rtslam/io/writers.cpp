@@ -132,8 +132,7 @@ const char* FramesCsvWriter::header() {
          "refused,nis,nis_count,health,reset";
 }
 
-FramesCsvWriter::FramesCsvWriter(const std::string& path)
-    : file_(path), last_flush_(std::chrono::steady_clock::now()) {
+FramesCsvWriter::FramesCsvWriter(const std::string& path) : file_(path), last_flush_(std::chrono::steady_clock::now()) {
   file_.stream() << header() << '\n';
   file_.flush();
 }

@@ -202,7 +202,8 @@ void write_overlay(const std::string& path, const ImageSlamFrame& frame, double 
 
 }  // namespace
 
-ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame,
+ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o,
+                               const std::function<void(int, int)>& on_frame,
                                const std::function<void(const ImageSlamFrame&)>& observer,
                                const std::atomic<bool>* stop_requested) {
   if (!ds.source) throw ConfigError(fmt::format("dataset '{}' has no measurement source", ds.name));

@@ -8,14 +8,22 @@
 // --points-demo runs the walking skeleton instead: simulated point measurements with known association
 // (src/rtslam/pipeline/point_demo.hpp), which writes trajectory.txt, trajectory.csv, groundtruth.txt, frames.csv
 // and summary.json.
+// Crash safety (docs/outputs.md): every file is written as NAME.tmp and renamed when complete; trajectory.csv and
+// frames.csv stream into their .tmp during the run; an --out holding an earlier run's files is refused unless
+// --force (which removes exactly those files); SIGINT/SIGTERM stop the run at the next measurement, the outputs of
+// what was processed are written with summary.json "status": "interrupted" and the exit code is 130/143; an error
+// during the run writes summary.json with "status": "failed" and the error.
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <optional>
+#include <regex>
 #include <thread>
 
 #include <fmt/format.h>
@@ -61,7 +69,89 @@ struct RunOptions {
   std::optional<std::string> overlays;  // --overlays [DIR]: PNG per frame (empty: OUT/overlays)
   int overlay_every = 1;
   std::string video;                   // --video FILE
+  bool force = false;                  // --force: replace the outputs of an earlier run in --out
 };
+
+// The files of a run in --out (and their .tmp), besides overlays/, overlay_NNNNN.png and the --video file there.
+constexpr std::array<const char*, 7> kRunFiles = {"config.yaml", "trajectory.txt", "trajectory.csv", "groundtruth.txt",
+                                                  "frames.csv",  "map.ply",        "summary.json"};
+
+// No mixed runs: the outputs of an earlier run in --out are refused (one line naming them), or removed with --force
+// (exactly those: other files stay). Then creates --out.
+void prepare_out_dir(const RunOptions& ro) {
+  namespace fs = std::filesystem;
+  const fs::path out(ro.out);
+  std::vector<fs::path> ours;
+  std::error_code ec;
+  if (fs::is_directory(out, ec)) {
+    for (const char* f : kRunFiles) {
+      for (const fs::path& p : {out / f, out / (std::string(f) + ".tmp")}) {
+        if (fs::exists(fs::symlink_status(p, ec))) ours.push_back(p);
+      }
+    }
+    if (fs::exists(out / "overlays", ec)) ours.push_back(out / "overlays");
+    const std::regex overlay_png(R"(overlay_\d{5}\.png(\.tmp)?)");
+    for (const auto& e : fs::directory_iterator(out, ec)) {
+      if (std::regex_match(e.path().filename().string(), overlay_png)) ours.push_back(e.path());
+    }
+    if (!ro.video.empty() && fs::exists(ro.video, ec) &&
+        fs::weakly_canonical(fs::path(ro.video).parent_path(), ec) == fs::weakly_canonical(out, ec)) {
+      ours.push_back(ro.video);
+    }
+  }
+  if (!ours.empty() && !ro.force) {
+    std::string names;
+    for (size_t i = 0; i < ours.size() && i < 4; ++i) names += (i ? ", " : "") + ours[i].filename().string();
+    if (ours.size() > 4) names += ", ...";
+    throw IoError(
+        fmt::format("{}: holds the outputs of an earlier run ({}); rerun with --force to replace them, or "
+                    "choose another --out",
+                    ro.out, names));
+  }
+  for (const auto& p : ours) {
+    fs::remove_all(p, ec);
+    if (ec) throw IoError(fmt::format("{}: cannot remove it (--force): {}", p.string(), ec.message()));
+  }
+  fs::create_directories(out, ec);
+  if (ec) throw IoError(fmt::format("{}: cannot create the output folder: {}", ro.out, ec.message()));
+}
+
+// SIGINT / SIGTERM during a run: the handler sets the flags; the pipeline stops at the next measurement.
+std::atomic<bool> g_run_stop{false};
+std::atomic<int> g_run_signal{0};
+extern "C" void on_run_signal(int sig) {
+  g_run_signal = sig;
+  g_run_stop = true;
+}
+
+/// Installs on_run_signal for SIGINT and SIGTERM while alive (or until restore()).
+class RunSignals {
+ public:
+  RunSignals() {
+    g_run_stop = false;
+    g_run_signal = 0;
+    old_int_ = std::signal(SIGINT, on_run_signal);
+    old_term_ = std::signal(SIGTERM, on_run_signal);
+  }
+  ~RunSignals() { restore(); }
+  RunSignals(const RunSignals&) = delete;
+  RunSignals& operator=(const RunSignals&) = delete;
+  void restore() {
+    if (restored_) return;
+    restored_ = true;
+    std::signal(SIGINT, old_int_ == SIG_ERR ? SIG_DFL : old_int_);
+    std::signal(SIGTERM, old_term_ == SIG_ERR ? SIG_DFL : old_term_);
+  }
+  /// The signal received (0: none); exit code 128 + signal.
+  static int received() { return g_run_signal.load(); }
+
+ private:
+  using Handler = void (*)(int);
+  Handler old_int_ = SIG_DFL, old_term_ = SIG_DFL;
+  bool restored_ = false;
+};
+
+const char* signal_name(int sig) { return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal"; }
 
 // Ctrl-C / SIGTERM while the viewer keeps serving after the run (names distinct from cmd_view's: unity build).
 std::atomic<bool> g_run_viewer_stop{false};
@@ -226,7 +316,7 @@ void run_demo(const RunOptions& ro) {
     std::cout << YAML::Dump(pipeline::to_yaml(o)) << '\n';
     return;
   }
-  std::filesystem::create_directories(ro.out);
+  prepare_out_dir(ro);
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
 
   io::ProgressLine progress(0, nullptr, ro.quiet ? std::optional<bool>(false) : std::nullopt);
@@ -254,6 +344,7 @@ void run_demo(const RunOptions& ro) {
   const double ate_pct = ev.path_length_m > 0 ? 100.0 * ate / ev.path_length_m : 0.0;
 
   nlohmann::json summary;
+  summary["status"] = "complete";
   summary["mode"] = "demo: simulated points, known association, constant-velocity monocular EKF-SLAM";
   summary["seed"] = o.seed;
   summary["frames"] = result.frames.size();
@@ -299,6 +390,7 @@ void run_dataset(const RunOptions& ro) {
     std::cout << YAML::Dump(pipeline::to_yaml(o)) << '\n';
     return;
   }
+  prepare_out_dir(ro);          // an earlier run's outputs: refused, or removed with --force
   RunDisplays displays(ro, o);  // before the input: a port in use or a bad path fails at once
   io::DatasetOptions dopt;
   dopt.use_imu = o.robot == "inertial";
@@ -310,7 +402,6 @@ void run_dataset(const RunOptions& ro) {
   if (simulated && (ro.start_at_s > 0.0 || ro.stop_after_s > 0.0)) {
     ds.source = std::make_unique<io::WindowSource>(std::move(ds.source), ro.start_at_s, ro.stop_after_s);
   }
-  std::filesystem::create_directories(ro.out);
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
   displays.attach(ds, o.seed);
 
@@ -318,142 +409,185 @@ void run_dataset(const RunOptions& ro) {
   io::ProgressLine progress(total ? *total : 0, nullptr, ro.quiet ? std::optional<bool>(false) : std::nullopt);
   pipeline::ImageSlamOptions run_o = o;
   run_o.camera = 0;  // the Rig holds the selected camera only
-  std::function<void(const pipeline::ImageSlamFrame&)> observer;  // none without a display: nothing per frame
-  if (displays.active()) observer = [&](const pipeline::ImageSlamFrame& f) { displays.on_frame(f); };
-  const auto result = pipeline::run_image_slam(
-      ds, run_o, [&](int done, int) { progress.update(static_cast<size_t>(done)); }, observer);
-  progress.finish();
-  displays.finish_run();
-
-  io::write_tum(ro.out + "/trajectory.txt", result.estimate);
-  io::write_trajectory_csv(ro.out + "/trajectory.csv", result.estimate);
-  if (ds.ground_truth) io::write_tum(ro.out + "/groundtruth.txt", *ds.ground_truth);
-  else if (!ro.groundtruth.empty()) io::write_tum(ro.out + "/groundtruth.txt", io::read_trajectory(ro.groundtruth));
-  {
-    io::FramesCsvWriter frames(ro.out + "/frames.csv");
-    for (const auto& s : result.frames) frames.write(to_io(s));
-    frames.close();
-  }
-  {
-    std::vector<io::MapPoint> pts;
-    for (size_t i = 0; i < result.landmark_ids.size(); ++i) {
-      io::MapPoint mp;
-      mp.id = static_cast<std::uint64_t>(result.landmark_ids[i]);
-      mp.p_W = result.landmark_positions[i];
-      mp.cov = result.landmark_covariances[i];
-      pts.push_back(mp);
-    }
-    io::write_map_ply(ro.out + "/map.ply", pts);
-  }
-  std::vector<double> times;
-  times.reserve(result.frames.size());
-  for (const auto& s : result.frames) times.push_back(s.time_total_ms);
-  const io::Percentiles timing = io::percentiles(times);
-  // Median of each stage (frames.csv has them per frame).
-  const auto stage_median = [&](double slam::FrameStats::*field) {
-    std::vector<double> v;
-    v.reserve(result.frames.size());
-    for (const auto& s : result.frames) v.push_back(s.*field);
-    return io::percentiles(v).median;
+  // trajectory.csv and frames.csv stream into their .tmp during the run (flushed every second: a killed run leaves
+  // the rows so far there) and are renamed at its end.
+  io::TrajectoryCsvWriter trajectory_csv(ro.out + "/trajectory.csv");
+  io::FramesCsvWriter frames_csv(ro.out + "/frames.csv");
+  const auto observer = [&](const pipeline::ImageSlamFrame& f) {
+    trajectory_csv.write(*f.pose);
+    frames_csv.write(to_io(*f.stats));
+    if (displays.active()) displays.on_frame(f);
   };
-  const nlohmann::json stages = {{"predict", stage_median(&slam::FrameStats::time_predict_ms)},
-                                 {"match", stage_median(&slam::FrameStats::time_match_ms)},
-                                 {"ransac", stage_median(&slam::FrameStats::time_ransac_ms)},
-                                 {"update", stage_median(&slam::FrameStats::time_update_ms)},
-                                 {"init", stage_median(&slam::FrameStats::time_init_ms)},
-                                 {"map", stage_median(&slam::FrameStats::time_map_ms)}};
-
+  RunSignals signals;
+  pipeline::ImageSlamResult result;
+  bool interrupted = false;
   nlohmann::json summary;
-  summary["mode"] = result.inertial ? "inertial-monocular EKF-SLAM: IMU-driven prediction, active search, one-point "
-                                      "RANSAC, AHP landmarks"
-                                    : "monocular EKF-SLAM on images: active search, one-point RANSAC, AHP landmarks";
-  if (result.inertial) {
-    const auto v3 = [](const Eigen::Vector3d& v) { return std::vector<double>{v.x(), v.y(), v.z()}; };
-    summary["imu"] = {{"start", result.inertial_start},
-                      {"samples", result.imu_samples},
-                      {"samples_integrated", result.imu_samples_integrated},
-                      {"gyro_saturated_samples", result.imu_gyro_saturated},
-                      {"accel_saturated_samples", result.imu_accel_saturated},
-                      {"images_before_start", result.images_before_start},
-                      {"images_not_covered", result.images_not_covered},
-                      {"gravity_W", v3(result.gravity_W)},
-                      {"accel_bias", v3(result.accel_bias)},
-                      {"gyro_bias", v3(result.gyro_bias)}};
-    if (result.extrinsics_estimated) {
-      const auto pose = [&](const math::Pose& T) {
-        return nlohmann::json{{"p_RS", v3(T.p)}, {"q_RS_wxyz", {T.q.w(), T.q.x(), T.q.y(), T.q.z()}}};
-      };
-      const math::Pose d = result.T_RS_calibration.inverse() * result.T_RS_estimate;
-      summary["imu"]["extrinsics"] = {
-          {"calibration", pose(result.T_RS_calibration)},
-          {"estimate", pose(result.T_RS_estimate)},
-          {"std_p_m", v3(result.T_RS_std.head<3>())},
-          {"std_theta_deg", v3(result.T_RS_std.tail<3>() * 180.0 / M_PI)},
-          {"change_from_calibration", {{"p_m", (result.T_RS_estimate.p - result.T_RS_calibration.p).norm()},
-                                       {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
-    }
-  }
-  {
-    long refused = 0, without_search = 0, nis_n = 0;
-    double nis_sum = 0.0;
-    for (const auto& f : result.frames) {
-      refused += f.refused;
-      without_search += f.searched == 0 ? 1 : 0;
-      nis_sum += f.nis;
-      nis_n += f.nis_count;
-    }
-    summary["health"] = {{"final", slam::to_string(result.final_health)},
-                         {"frames_lost", result.frames_lost},
-                         {"frames_diverged", result.frames_diverged},
-                         {"resets", result.resets},
-                         {"image_gaps", result.frame_gaps},
-                         {"frames_without_search", without_search},
-                         {"corrections_refused", refused},
-                         {"mean_nis_per_dof", nis_n > 0 ? nis_sum / (2.0 * static_cast<double>(nis_n)) : 0.0}};
-  }
-  summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
-  summary["input"] = ds.source->stats().to_json();
-  summary["seed"] = o.seed;
-  summary["frames"] = result.frames.size();
-  summary["landmarks"] = {{"final", result.landmarks_final},
-                          {"created", result.landmarks_created},
-                          {"euclidean_final", result.euclidean_final}};
-  summary["timing_ms"] = io::to_json(timing);
-  summary["timing_stage_median_ms"] = stages;
-  // Matched landmarks per frame, over every frame and after the first second (the map is being built then).
+  std::string accuracy_line, display_line;
+  std::vector<double> times;
+  io::Percentiles timing;
+  nlohmann::json stages;
   int min_matched = std::numeric_limits<int>::max(), min_matched_after_1s = std::numeric_limits<int>::max();
-  for (const auto& s : result.frames) {
-    min_matched = std::min(min_matched, s.matched);
-    if (!result.frames.empty() && s.t - result.frames.front().t >= 1'000'000'000) {
-      min_matched_after_1s = std::min(min_matched_after_1s, s.matched);
+  try {
+    result = pipeline::run_image_slam(
+        ds, run_o, [&](int done, int) { progress.update(static_cast<size_t>(done)); }, observer, &g_run_stop);
+    interrupted = g_run_stop.load();
+    progress.finish();
+    displays.finish_run();
+    trajectory_csv.close();
+    frames_csv.close();
+    io::write_tum(ro.out + "/trajectory.txt", result.estimate);
+    if (ds.ground_truth)
+      io::write_tum(ro.out + "/groundtruth.txt", *ds.ground_truth);
+    else if (!ro.groundtruth.empty())
+      io::write_tum(ro.out + "/groundtruth.txt", io::read_trajectory(ro.groundtruth));
+    {
+      std::vector<io::MapPoint> pts;
+      for (size_t i = 0; i < result.landmark_ids.size(); ++i) {
+        io::MapPoint mp;
+        mp.id = static_cast<std::uint64_t>(result.landmark_ids[i]);
+        mp.p_W = result.landmark_positions[i];
+        mp.cov = result.landmark_covariances[i];
+        pts.push_back(mp);
+      }
+      io::write_map_ply(ro.out + "/map.ply", pts);
     }
-  }
-  if (!result.frames.empty()) {
-    summary["matched_min"] = min_matched;
-    if (min_matched_after_1s != std::numeric_limits<int>::max()) summary["matched_min_after_1s"] = min_matched_after_1s;
-  }
-  // Accuracy, when a reference is at hand (--groundtruth, or the dataset's own): evaluation only, after the run.
-  std::optional<Trajectory> reference;
-  if (!ro.groundtruth.empty()) {
-    reference = io::read_trajectory(ro.groundtruth);
-  } else if (ds.ground_truth) {
-    reference = std::move(ds.ground_truth);
-  }
-  std::string accuracy_line;
-  if (reference && result.estimate.poses.size() >= 3) {
+    times.reserve(result.frames.size());
+    for (const auto& s : result.frames) times.push_back(s.time_total_ms);
+    timing = io::percentiles(times);
+    // Median of each stage (frames.csv has them per frame).
+    const auto stage_median = [&](double slam::FrameStats::*field) {
+      std::vector<double> v;
+      v.reserve(result.frames.size());
+      for (const auto& s : result.frames) v.push_back(s.*field);
+      return io::percentiles(v).median;
+    };
+    stages = {{"predict", stage_median(&slam::FrameStats::time_predict_ms)},
+              {"match", stage_median(&slam::FrameStats::time_match_ms)},
+              {"ransac", stage_median(&slam::FrameStats::time_ransac_ms)},
+              {"update", stage_median(&slam::FrameStats::time_update_ms)},
+              {"init", stage_median(&slam::FrameStats::time_init_ms)},
+              {"map", stage_median(&slam::FrameStats::time_map_ms)}};
+
+    summary["status"] = interrupted ? "interrupted" : "complete";
+    summary["mode"] = result.inertial ? "inertial-monocular EKF-SLAM: IMU-driven prediction, active search, one-point "
+                                        "RANSAC, AHP landmarks"
+                                      : "monocular EKF-SLAM on images: active search, one-point RANSAC, AHP landmarks";
+    if (result.inertial) {
+      const auto v3 = [](const Eigen::Vector3d& v) { return std::vector<double>{v.x(), v.y(), v.z()}; };
+      summary["imu"] = {{"start", result.inertial_start},
+                        {"samples", result.imu_samples},
+                        {"samples_integrated", result.imu_samples_integrated},
+                        {"gyro_saturated_samples", result.imu_gyro_saturated},
+                        {"accel_saturated_samples", result.imu_accel_saturated},
+                        {"images_before_start", result.images_before_start},
+                        {"images_not_covered", result.images_not_covered},
+                        {"gravity_W", v3(result.gravity_W)},
+                        {"accel_bias", v3(result.accel_bias)},
+                        {"gyro_bias", v3(result.gyro_bias)}};
+      if (result.extrinsics_estimated) {
+        const auto pose = [&](const math::Pose& T) {
+          return nlohmann::json{{"p_RS", v3(T.p)}, {"q_RS_wxyz", {T.q.w(), T.q.x(), T.q.y(), T.q.z()}}};
+        };
+        const math::Pose d = result.T_RS_calibration.inverse() * result.T_RS_estimate;
+        summary["imu"]["extrinsics"] = {
+            {"calibration", pose(result.T_RS_calibration)},
+            {"estimate", pose(result.T_RS_estimate)},
+            {"std_p_m", v3(result.T_RS_std.head<3>())},
+            {"std_theta_deg", v3(result.T_RS_std.tail<3>() * 180.0 / M_PI)},
+            {"change_from_calibration",
+             {{"p_m", (result.T_RS_estimate.p - result.T_RS_calibration.p).norm()},
+              {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
+      }
+    }
+    {
+      long refused = 0, without_search = 0, nis_n = 0;
+      double nis_sum = 0.0;
+      for (const auto& f : result.frames) {
+        refused += f.refused;
+        without_search += f.searched == 0 ? 1 : 0;
+        nis_sum += f.nis;
+        nis_n += f.nis_count;
+      }
+      summary["health"] = {{"final", slam::to_string(result.final_health)},
+                           {"frames_lost", result.frames_lost},
+                           {"frames_diverged", result.frames_diverged},
+                           {"resets", result.resets},
+                           {"image_gaps", result.frame_gaps},
+                           {"frames_without_search", without_search},
+                           {"corrections_refused", refused},
+                           {"mean_nis_per_dof", nis_n > 0 ? nis_sum / (2.0 * static_cast<double>(nis_n)) : 0.0}};
+    }
+    summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
+    summary["input"] = ds.source->stats().to_json();
+    summary["seed"] = o.seed;
+    summary["frames"] = result.frames.size();
+    summary["landmarks"] = {{"final", result.landmarks_final},
+                            {"created", result.landmarks_created},
+                            {"euclidean_final", result.euclidean_final}};
+    summary["timing_ms"] = io::to_json(timing);
+    summary["timing_stage_median_ms"] = stages;
+    // Matched landmarks per frame, over every frame and after the first second (the map is being built then).
+    for (const auto& s : result.frames) {
+      min_matched = std::min(min_matched, s.matched);
+      if (!result.frames.empty() && s.t - result.frames.front().t >= 1'000'000'000) {
+        min_matched_after_1s = std::min(min_matched_after_1s, s.matched);
+      }
+    }
+    if (!result.frames.empty()) {
+      summary["matched_min"] = min_matched;
+      if (min_matched_after_1s != std::numeric_limits<int>::max())
+        summary["matched_min_after_1s"] = min_matched_after_1s;
+    }
+    // Accuracy, when a reference is at hand (--groundtruth, or the dataset's own): evaluation only, after the run.
+    std::optional<Trajectory> reference;
+    if (!ro.groundtruth.empty()) {
+      reference = io::read_trajectory(ro.groundtruth);
+    } else if (ds.ground_truth) {
+      reference = std::move(ds.ground_truth);
+    }
+    if (reference && result.estimate.poses.size() >= 3) {
+      try {
+        const eval::RunAccuracy acc = eval::evaluate_accuracy(result.estimate, *reference, result.inertial);
+        summary["accuracy"] = acc.json;
+        summary["accuracy"]["reference"] = ro.groundtruth.empty() ? std::string("dataset") : ro.groundtruth;
+        summary["ate_percent_of_path"] = acc.json["ate_percent_of_path"];
+        accuracy_line = acc.line;
+      } catch (const Error& e) {
+        summary["accuracy_error"] = e.what();
+        accuracy_line = fmt::format("  ATE not computed: {}\n", e.what());
+      }
+    }
+    display_line = displays.report_line(summary);
+    io::write_summary_json(ro.out + "/summary.json", summary);
+  } catch (const std::exception& e) {
+    // A failed (or, before its first image, interrupted) run: what is safe stays — config.yaml, and trajectory.csv
+    // and frames.csv with the rows written so far (unless the error was theirs: then they are gone) — and summary.json
+    // says why.
+    progress.finish();
+    for (const auto& close :
+         std::initializer_list<std::function<void()>>{[&] { trajectory_csv.close(); }, [&] { frames_csv.close(); }}) {
+      try {
+        close();
+      } catch (const std::exception&) {
+      }
+    }
+    const int sig = RunSignals::received();
+    nlohmann::json failed = {{"status", sig ? "interrupted" : "failed"},
+                             {"error", e.what()},
+                             {"dataset", {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}}},
+                             {"seed", o.seed},
+                             {"frames", trajectory_csv.rows()}};
     try {
-      const eval::RunAccuracy acc = eval::evaluate_accuracy(result.estimate, *reference, result.inertial);
-      summary["accuracy"] = acc.json;
-      summary["accuracy"]["reference"] = ro.groundtruth.empty() ? std::string("dataset") : ro.groundtruth;
-      summary["ate_percent_of_path"] = acc.json["ate_percent_of_path"];
-      accuracy_line = acc.line;
-    } catch (const Error& e) {
-      summary["accuracy_error"] = e.what();
-      accuracy_line = fmt::format("  ATE not computed: {}\n", e.what());
+      io::write_summary_json(ro.out + "/summary.json", failed);
+    } catch (const std::exception&) {
     }
+    if (sig) {
+      std::cerr << fmt::format("rtslam: interrupted by {} ({}); outputs in {}/\n", signal_name(sig), e.what(), ro.out);
+      throw CommandExit{128 + sig};
+    }
+    throw;
   }
-  const std::string display_line = displays.report_line(summary);
-  io::write_summary_json(ro.out + "/summary.json", summary);
+  signals.restore();
   std::cout << fmt::format(
       "rtslam run on {} ({}), seed {}: {} frames\n"
       "  landmarks: {} in map at the end ({} Euclidean), {} created; matched per frame: min {} ({} after 1 s)\n"
@@ -476,6 +610,13 @@ void run_dataset(const RunOptions& ro) {
           : std::string()),
       display_line, ro.out);
   std::cout << std::flush;
+  if (const int sig = RunSignals::received()) {
+    std::cerr << fmt::format(
+        "rtslam: interrupted by {} after {} frame(s); outputs of what was processed in {}/ "
+        "(summary.json status {})\n",
+        signal_name(sig), result.frames.size(), ro.out, interrupted ? "interrupted" : "complete");
+    throw CommandExit{128 + sig};
+  }
   displays.hold(ro);
   if (result.final_health != slam::Health::Ok) {
     throw DataError(fmt::format("the run ended with tracking {} ({} re-initialization(s) did not recover it); outputs "
@@ -545,6 +686,10 @@ void register_run(CLI::App& app) {
   sub->add_option("--stop-after", opts->stop_after_s, "Process this many seconds of input from the start (0: all)")
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--quiet", opts->quiet, "No progress line");
+  sub->add_flag("--force", opts->force,
+                "Replace the outputs of an earlier run in --out (exactly rtslam's files: config.yaml, trajectory.*, "
+                "groundtruth.txt, frames.csv, map.ply, summary.json, overlays/, overlay_*.png, the --video file "
+                "there; other files stay). Without it such a folder is refused");
   sub->callback([opts] {
     if (opts->points_demo) {
       if (!opts->dataset.empty()) throw ConfigError("--points-demo and --dataset exclude each other");

@@ -9,9 +9,15 @@
 #include <string>
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netinet/in.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <chrono>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -121,6 +127,8 @@ TEST(Cli, DemoRunWritesOutputsAndItsConfigReproducesIt) {
   const std::string summary = read_file(a / "summary.json");
   EXPECT_NE(summary.find("\"timing_ms\""), std::string::npos);
   EXPECT_NE(summary.find("\"timing_stage_median_ms\""), std::string::npos);
+  EXPECT_NE(summary.find("\"status\": \"complete\""), std::string::npos);
+  for (const auto& e : fs::directory_iterator(a)) EXPECT_NE(e.path().extension(), ".tmp") << e.path();
   EXPECT_NE(r.out.find("stage medians: predict"), std::string::npos) << r.out;
   const Result r2 = run("run --config " + (a / "config.yaml").string() + " --quiet --out " + b.string());
   ASSERT_EQ(r2.code, 0) << r2.out;
@@ -295,6 +303,110 @@ TEST(Cli, RunViewServesThePageDuringAndAfterTheRunAndStopsOnSigterm) {
   EXPECT_NE(out.find("viewer: stopped"), std::string::npos) << out;
   EXPECT_NE(out.find("observer"), std::string::npos) << out;
   EXPECT_NE(read_file(a / "summary.json").find("\"viz\""), std::string::npos);
+}
+
+// No folder mixing two runs: a used --out is refused (one line naming it and --force); --force removes exactly
+// the earlier run's files.
+TEST(Cli, RerunIntoAUsedFolderIsRefusedWithoutForceAndForceRemovesOnlyOurFiles) {
+  const fs::path a = temp_dir("rerun");
+  ASSERT_EQ(run("run --duration 1 --seed 1 --quiet --out " + a.string()).code, 0);
+  std::ofstream(a / "notes.txt") << "mine\n";
+  std::ofstream(a / "trajectory.csv.tmp") << "left by a killed run\n";
+  const std::string before = read_file(a / "trajectory.csv");
+  const Result refused = run("run --duration 2 --seed 2 --quiet --out " + a.string());
+  EXPECT_NE(refused.code, 0);
+  EXPECT_EQ(count_lines(refused.out), 1) << refused.out;
+  EXPECT_NE(refused.out.find(a.string()), std::string::npos) << refused.out;
+  EXPECT_NE(refused.out.find("--force"), std::string::npos) << refused.out;
+  EXPECT_EQ(read_file(a / "trajectory.csv"), before) << "a refused run touches nothing";
+  // --force: the old run's files are gone (the points demo writes no map.ply; the stale .tmp goes too), a foreign
+  // file survives.
+  const Result forced = run("run --points-demo --duration 1 --seed 2 --quiet --force --out " + a.string());
+  ASSERT_EQ(forced.code, 0) << forced.out;
+  EXPECT_FALSE(fs::exists(a / "trajectory.csv.tmp"));
+  EXPECT_FALSE(fs::exists(a / "map.ply")) << "the points demo writes no map: map.ply was the old run's";
+  EXPECT_NE(read_file(a / "trajectory.csv"), before);
+  EXPECT_EQ(read_file(a / "notes.txt"), "mine\n");
+  EXPECT_NE(read_file(a / "summary.json").find("\"status\": \"complete\""), std::string::npos);
+}
+
+// SIGINT during a run: it stops at the next measurement, writes the outputs of what was processed with
+// summary.json status "interrupted" and exits with 130.
+TEST(Cli, SigintStopsTheRunAndWritesItsOutputsAsInterrupted) {
+  const fs::path a = temp_dir("sigint");
+  const std::string cmd = "sh -c 'echo pid $$; exec " + std::string(RTSLAM_CLI) +
+                          " run --duration 120 --seed 1 --quiet --out " + a.string() + "' 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::array<char, 4096> buf{};
+  std::string out;
+  int pid = -1;
+  if (fgets(buf.data(), static_cast<int>(buf.size()), p)) {
+    out += buf.data();
+    if (out.rfind("pid ", 0) == 0) pid = std::stoi(out.substr(4));
+  }
+  ASSERT_GT(pid, 0) << out;
+  // The streamed trajectory reaches its .tmp within a second or so of the first frames.
+  const fs::path tmp = a / "trajectory.csv.tmp";
+  for (int i = 0; i < 300 && !(fs::exists(tmp) && fs::file_size(tmp) > 0); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_TRUE(fs::exists(tmp) && fs::file_size(tmp) > 0) << "trajectory.csv.tmp streamed during the run";
+  ::kill(pid, SIGINT);
+  while (fgets(buf.data(), static_cast<int>(buf.size()), p)) out += buf.data();
+  const int status = pclose(p);
+  ASSERT_TRUE(WIFEXITED(status)) << out;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << out;
+  EXPECT_NE(out.find("interrupted by SIGINT"), std::string::npos) << out;
+  EXPECT_NE(read_file(a / "summary.json").find("\"status\": \"interrupted\""), std::string::npos);
+  EXPECT_FALSE(fs::exists(tmp));
+  const int frames = frames_of(a);
+  EXPECT_GT(frames, 0);
+  EXPECT_LT(frames, 2400) << "stopped before the end of the 120 s sequence";
+  EXPECT_EQ(count_lines(read_file(a / "trajectory.csv")) - 2, frames) << "one pose per processed frame";
+  EXPECT_TRUE(fs::exists(a / "trajectory.txt"));
+  EXPECT_TRUE(fs::exists(a / "map.ply"));
+}
+
+// A write error (a file-size limit: SIGXFSZ ignored, the write fails with EFBIG as on a full disk): a non-zero exit,
+// one error line naming the file, no partial file under a final name, summary.json status "failed".
+TEST(Cli, AWriteErrorIsOneLineNamingTheFileAndLeavesNoTruncatedOutput) {
+  const fs::path a = temp_dir("fsize");
+  const fs::path log = fs::temp_directory_path() / "rtslam_test_cli_fsize.log";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) ::_exit(120);
+    ::dup2(fd, 1);
+    ::dup2(fd, 2);
+    std::signal(SIGXFSZ, SIG_IGN);           // kept across exec
+    const rlimit lim{32 * 1024, 32 * 1024};  // config.yaml (~3 kB) fits, a 10 s trajectory.csv (~100 kB) does not
+    if (::setrlimit(RLIMIT_FSIZE, &lim) != 0) ::_exit(121);
+    const std::string out = a.string();
+    ::execl(RTSLAM_CLI, RTSLAM_CLI, "--log-level", "warn", "run", "--duration", "10", "--seed", "1", "--quiet", "--out",
+            out.c_str(), static_cast<char*>(nullptr));
+    ::_exit(122);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  const std::string out = read_file(log);
+  ASSERT_TRUE(WIFEXITED(status)) << out;
+  EXPECT_NE(WEXITSTATUS(status), 0) << out;
+  EXPECT_LT(WEXITSTATUS(status), 120) << out;
+  EXPECT_EQ(count_lines(out), 1) << out;
+  EXPECT_NE(out.find((a / "trajectory.csv").string()), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(a / "trajectory.csv"));
+  EXPECT_FALSE(fs::exists(a / "trajectory.csv.tmp"));
+  EXPECT_TRUE(fs::exists(a / "config.yaml"));
+  const std::string summary = read_file(a / "summary.json");
+  EXPECT_NE(summary.find("\"status\": \"failed\""), std::string::npos) << summary;
+  EXPECT_NE(summary.find("trajectory.csv: write failed"), std::string::npos) << summary;
+  // frames.csv, when kept, holds whole rows only.
+  if (fs::exists(a / "frames.csv")) {
+    const std::string f = read_file(a / "frames.csv");
+    EXPECT_EQ(f.back(), '\n');
+  }
 }
 
 TEST(Cli, ImuNoiseWithoutGroundTruthIsOneLineNamingTheStateFile) {

@@ -15,7 +15,12 @@ int main(int argc, char** argv) {
     std::cerr << "usage: eval_fake_run run --seed N --out DIR [--duration S]\n";
     return 2;
   }
-  for (int i = 2; i + 1 < argc; i += 2) {
+  for (int i = 2; i < argc; i += 2) {
+    if (std::string(argv[i]) == "--force") {  // a flag: rtslam run replaces an earlier run's files
+      --i;
+      continue;
+    }
+    if (i + 1 >= argc) break;
     const std::string k = argv[i], v = argv[i + 1];
     if (k == "--seed") o.seed = std::stoull(v);
     else if (k == "--out") out = v;

@@ -2,9 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <stdexcept>
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
@@ -203,7 +209,11 @@ TEST(FramesCsv, RoundTripsEveryField) {
   {
     FramesCsvWriter w(dir / "frames.csv");
     for (const auto& r : rows) w.write(r);
+    EXPECT_FALSE(fs::exists(dir / "frames.csv")) << "streamed into frames.csv.tmp until close()";
+    EXPECT_TRUE(fs::exists(dir / "frames.csv.tmp"));
+    w.close();
   }
+  EXPECT_FALSE(fs::exists(dir / "frames.csv.tmp"));
   const auto back = read_frames_csv(dir / "frames.csv");
   ASSERT_EQ(back.size(), rows.size());
   for (size_t i = 0; i < rows.size(); ++i) {
@@ -220,6 +230,84 @@ TEST(FramesCsv, RoundTripsEveryField) {
     EXPECT_EQ(back[i].reset, rows[i].reset);
   }
   EXPECT_EQ(test::read_text(dir / "frames.csv").rfind(FramesCsvWriter::header(), 0), 0u);
+}
+
+TEST(AtomicFile, CommitRenamesTheTmpAndAnExceptionKeepsThePreviousFile) {
+  TempDir dir;
+  const std::string path = dir / "summary.json";
+  write_atomically(path, [](std::ostream& out) { out << "old\n"; });
+  EXPECT_EQ(test::read_text(dir / "summary.json"), "old\n");
+  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  // A writer that throws half-way: the final name keeps the previous file, the .tmp is gone.
+  EXPECT_THROW(write_atomically(path,
+                                [](std::ostream& out) {
+                                  out << "half";
+                                  throw DataError("bad pose");
+                                }),
+               DataError);
+  EXPECT_EQ(test::read_text(dir / "summary.json"), "old\n");
+  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  {
+    AtomicFile f(path);
+    f.stream() << "new\n";
+    f.flush();
+    EXPECT_EQ(test::read_text(path + ".tmp"), "new\n") << "flushed data is in the .tmp";
+    f.commit();
+  }
+  EXPECT_EQ(test::read_text(dir / "summary.json"), "new\n");
+  EXPECT_THROW(AtomicFile(dir / "absent/x.csv"), IoError);
+}
+
+TEST(FramesCsv, WithoutCloseNoFileIsLeft) {
+  TempDir dir;
+  {
+    FramesCsvWriter w(dir / "frames.csv");
+    w.write(FrameStats{});
+  }
+  EXPECT_FALSE(fs::exists(dir / "frames.csv"));
+  EXPECT_FALSE(fs::exists(dir / "frames.csv.tmp"));
+}
+
+// A file-size limit (RLIMIT_FSIZE, SIGXFSZ ignored: the write fails with EFBIG as on a full disk), in a child
+// process: every writer throws IoError naming the final file, which does not exist afterwards.
+TEST(AtomicFile, AWriteErrorThrowsNamingTheFileAndLeavesNoFinalFile) {
+  TempDir dir;
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::signal(SIGXFSZ, SIG_IGN);
+    const rlimit lim{4096, 4096};
+    if (::setrlimit(RLIMIT_FSIZE, &lim) != 0) ::_exit(10);
+    int code = 0;
+    const auto expect_fails = [&](const std::string& name, const std::function<void(const std::string&)>& write) {
+      const std::string path = dir / name;
+      try {
+        write(path);
+        code |= 1;  // no error
+      } catch (const IoError& e) {
+        if (std::string(e.what()).find(path) == std::string::npos) code |= 2;
+      }
+      if (fs::exists(path)) code |= 4;
+      if (fs::exists(path + ".tmp")) code |= 8;
+    };
+    nlohmann::json big;
+    for (int i = 0; i < 2000; ++i) big["key" + std::to_string(i)] = i;
+    expect_fails("summary.json", [&](const std::string& p) { write_summary_json(p, big); });
+    Trajectory traj;
+    traj.poses.resize(500);
+    expect_fails("trajectory.csv", [&](const std::string& p) { write_trajectory_csv(p, traj); });
+    expect_fails("trajectory.txt", [&](const std::string& p) { write_tum(p, traj); });
+    expect_fails("frames.csv", [&](const std::string& p) {
+      FramesCsvWriter w(p);
+      for (int i = 0; i < 500; ++i) w.write(FrameStats{});
+      w.close();
+    });
+    ::_exit(code);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "bits: 1 no error, 2 message without the path, 4 final file, 8 tmp left";
 }
 
 TEST(ConfigAndSummary, ConfigYamlReloadsAndSummaryJsonParses) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <set>
 #include <thread>
@@ -88,6 +89,8 @@ std::vector<RunSpec> plan_batch(const BatchOptions& o) {
           r.argv.push_back("--dataset");
           r.argv.push_back(fs::exists(d) ? absolute(d) : d);
         }
+        // The run folder is the batch's: a retried run replaces what an interrupted or failed attempt left there.
+        r.argv.push_back("--force");
         r.argv.insert(r.argv.end(), o.extra_args.begin(), o.extra_args.end());
         runs.push_back(std::move(r));
       }
@@ -96,7 +99,16 @@ std::vector<RunSpec> plan_batch(const BatchOptions& o) {
   return runs;
 }
 
-bool run_finished(const RunSpec& run) { return fs::exists(fs::path(run.dir) / "summary.json"); }
+// Finished: summary.json exists and does not say "interrupted" or "failed" (docs/outputs.md "Crash safety"), which
+// are retried like runs without one.
+bool run_finished(const RunSpec& run) {
+  const fs::path summary = fs::path(run.dir) / "summary.json";
+  if (!fs::exists(summary)) return false;
+  std::ifstream in(summary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return text.find("\"status\": \"interrupted\"") == std::string::npos &&
+         text.find("\"status\": \"failed\"") == std::string::npos;
+}
 
 std::string format_progress(const BatchProgress& p, int width) {
   const std::size_t finished = p.done + p.skipped + p.failed;
@@ -159,7 +171,10 @@ std::string write_command_list(const BatchOptions& o, const std::string& path) {
       cmd.append(shell_quote(a));
     }
     const std::string dir = shell_quote(r.dir);
-    text += fmt::format("[ -f {0}/summary.json ] || {{ mkdir -p {0} && {1} > {0}/run.log 2>&1; }}\n", dir, cmd);
+    text += fmt::format(
+        "{{ [ -f {0}/summary.json ] && ! grep -qE '\"status\": \"(interrupted|failed)\"' "
+        "{0}/summary.json; }} || {{ mkdir -p {0} && {1} > {0}/run.log 2>&1; }}\n",
+        dir, cmd);
   }
   write_text(path, text);
   return path;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 
@@ -10,6 +11,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/io/text.hpp"
+#include "rtslam/io/writers.hpp"
 
 namespace rtslam::io {
 namespace {
@@ -284,7 +286,8 @@ Trajectory read_trajectory(const std::string& path, TrajectoryFormat format) {
 }
 
 void write_tum(const std::string& path, const Trajectory& trajectory) {
-  auto out = open_for_writing(path);
+  AtomicFile file(path);
+  std::ostream& out = file.stream();
   out << "# timestamp[s] tx ty tz qx qy qz qw\n";
   for (const auto& p : trajectory.poses) {
     const auto& q = p.q_WR;
@@ -292,55 +295,80 @@ void write_tum(const std::string& path, const Trajectory& trajectory) {
         << format_double(p.p_WR.z()) << ' ' << format_double(q.x()) << ' ' << format_double(q.y()) << ' '
         << format_double(q.z()) << ' ' << format_double(q.w()) << '\n';
   }
-  close_checked(out, path);
+  file.commit();
+}
+
+TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path)
+    : file_(path), last_flush_(std::chrono::steady_clock::now()) {}
+
+void TrajectoryCsvWriter::write(const StampedPose& p) {
+  std::ostream& out = file_.stream();
+  if (!first_) {
+    first_ = p;
+    out << "# rtslam trajectory: pose T_WR of the robot frame R in the world W (p_RS_R = p_WR, q_RS = q_WR, Hamilton"
+           " w x y z)";
+    if (p.cov) {
+      out << "; cov_ij = upper triangle (row-major) of the 6x6 covariance of [dp(3) dtheta(3)]: p = p_est + dp in W,"
+             " q = q_est * Exp(dtheta) (right perturbation, dtheta in R)";
+    }
+    out << '\n';
+    out << "#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []";
+    if (p.v_WR) out << ", v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1]";
+    if (p.gyro_bias) out << ", b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1]";
+    if (p.accel_bias) out << ", b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]";
+    if (p.cov) {
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) out << ", cov_" << r << c;
+    }
+    out << '\n';
+  }
+  require_same_groups(*first_, p, rows_, file_.path());
+  ++rows_;
+  row_ = fmt::format("{}", p.t);
+  const auto put = [this](double x) {
+    row_ += ',';
+    row_ += format_double(x);
+  };
+  for (int k = 0; k < 3; ++k) put(p.p_WR[k]);
+  put(p.q_WR.w());
+  put(p.q_WR.x());
+  put(p.q_WR.y());
+  put(p.q_WR.z());
+  if (p.v_WR)
+    for (int k = 0; k < 3; ++k) put((*p.v_WR)[k]);
+  if (p.gyro_bias)
+    for (int k = 0; k < 3; ++k) put((*p.gyro_bias)[k]);
+  if (p.accel_bias)
+    for (int k = 0; k < 3; ++k) put((*p.accel_bias)[k]);
+  if (p.cov)
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) put((*p.cov)(r, c));
+  row_ += '\n';
+  out << row_;
+  const auto now = std::chrono::steady_clock::now();
+  if (!out || now - last_flush_ >= std::chrono::seconds(1)) {
+    last_flush_ = now;
+    file_.flush();  // throws on a write error
+  }
+}
+
+void TrajectoryCsvWriter::close() {
+  if (file_.committed()) return;
+  if (!first_) write_header_only();
+  file_.commit();
+}
+
+void TrajectoryCsvWriter::write_header_only() {
+  // No pose: the two header lines of a pose without optional groups.
+  file_.stream() << "# rtslam trajectory: pose T_WR of the robot frame R in the world W (p_RS_R = p_WR, q_RS = q_WR, "
+                    "Hamilton w x y z)\n#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], "
+                    "q_RS_x [], q_RS_y [], q_RS_z []\n";
 }
 
 void write_trajectory_csv(const std::string& path, const Trajectory& trajectory) {
-  auto out = open_for_writing(path);
-  const StampedPose first = trajectory.poses.empty() ? StampedPose{} : trajectory.poses.front();
-  out << "# rtslam trajectory: pose T_WR of the robot frame R in the world W (p_RS_R = p_WR, q_RS = q_WR, Hamilton"
-         " w x y z)";
-  if (first.cov) {
-    out << "; cov_ij = upper triangle (row-major) of the 6x6 covariance of [dp(3) dtheta(3)]: p = p_est + dp in W,"
-           " q = q_est * Exp(dtheta) (right perturbation, dtheta in R)";
-  }
-  out << '\n';
-  out << "#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []";
-  if (first.v_WR) out << ", v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1]";
-  if (first.gyro_bias) out << ", b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1]";
-  if (first.accel_bias) out << ", b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]";
-  if (first.cov) {
-    for (int r = 0; r < 6; ++r)
-      for (int c = r; c < 6; ++c) out << ", cov_" << r << c;
-  }
-  out << '\n';
-  std::string row;
-  const auto put = [&row](double x) {
-    row += ',';
-    row += format_double(x);
-  };
-  for (size_t i = 0; i < trajectory.poses.size(); ++i) {
-    const auto& p = trajectory.poses[i];
-    require_same_groups(first, p, i, path);
-    row = fmt::format("{}", p.t);
-    for (int k = 0; k < 3; ++k) put(p.p_WR[k]);
-    put(p.q_WR.w());
-    put(p.q_WR.x());
-    put(p.q_WR.y());
-    put(p.q_WR.z());
-    if (p.v_WR)
-      for (int k = 0; k < 3; ++k) put((*p.v_WR)[k]);
-    if (p.gyro_bias)
-      for (int k = 0; k < 3; ++k) put((*p.gyro_bias)[k]);
-    if (p.accel_bias)
-      for (int k = 0; k < 3; ++k) put((*p.accel_bias)[k]);
-    if (p.cov)
-      for (int r = 0; r < 6; ++r)
-        for (int c = r; c < 6; ++c) put((*p.cov)(r, c));
-    row += '\n';
-    out << row;
-  }
-  close_checked(out, path);
+  TrajectoryCsvWriter w(path);
+  for (const auto& p : trajectory.poses) w.write(p);
+  w.close();
 }
 
 void write_kitti(const std::string& path, const Trajectory& trajectory) {

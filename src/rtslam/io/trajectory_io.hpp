@@ -13,9 +13,12 @@
 // reject a quaternion whose norm is off by more than 1e-2 and a KITTI rotation that is not orthonormal (1e-3).
 // KITTI rotations are read as the nearest unit quaternion, and written from the normalized quaternion.
 // Errors (IoError for unreadable/malformed files, DataError for bad values) name the file and the line.
+#include <chrono>
+#include <optional>
 #include <string>
 
 #include "rtslam/core/trajectory.hpp"
+#include "rtslam/io/writers.hpp"
 
 namespace rtslam::io {
 
@@ -27,12 +30,33 @@ Trajectory read_trajectory(const std::string& path, TrajectoryFormat format = Tr
 /// Detects the format of a trajectory file (never returns Auto); throws IoError if it cannot tell.
 TrajectoryFormat detect_trajectory_format(const std::string& path);
 
+// Every writer writes atomically (io::AtomicFile): under PATH.tmp, renamed to PATH once complete and flushed.
+
 /// TUM text: `# timestamp[s] tx ty tz qx qy qz qw` then one 8-column line per pose (seconds with 9 decimals).
 void write_tum(const std::string& path, const Trajectory& trajectory);
 
 /// rtslam trajectory.csv (EuRoC state style + covariance); the column groups written are those the FIRST pose has
 /// (velocity, biases, covariance) and every pose must have the same groups (DataError otherwise).
 void write_trajectory_csv(const std::string& path, const Trajectory& trajectory);
+
+/// The same file, streamed pose by pose into PATH.tmp (flushed at least once a second: a killed run leaves the poses
+/// so far there); close() renames it to PATH. The header follows the first pose's groups. Destroyed without close():
+/// the .tmp is removed.
+class TrajectoryCsvWriter {
+ public:
+  explicit TrajectoryCsvWriter(const std::string& path);
+  void write(const StampedPose& pose);
+  void close();
+  std::size_t rows() const { return rows_; }
+
+ private:
+  void write_header_only();
+  AtomicFile file_;
+  std::optional<StampedPose> first_;
+  std::size_t rows_ = 0;
+  std::string row_;
+  std::chrono::steady_clock::time_point last_flush_;
+};
 
 /// KITTI poses: 12 numbers per line (3x4 row-major [R|t]); timestamps are not written.
 void write_kitti(const std::string& path, const Trajectory& trajectory);

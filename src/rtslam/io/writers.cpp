@@ -18,10 +18,61 @@
 namespace rtslam::io {
 namespace fs = std::filesystem;
 
+// ---------------------------------------------------------------------------------------------- atomic files
+
+AtomicFile::AtomicFile(const std::string& path) : path_(path), tmp_(path + ".tmp") {
+  out_.open(tmp_, std::ios::out | std::ios::trunc);
+  if (!out_) throw IoError(fmt::format("{}: cannot open {} for writing", path_, tmp_));
+}
+
+AtomicFile::~AtomicFile() {
+  if (!committed_) discard();
+}
+
+void AtomicFile::flush() {
+  out_.flush();
+  if (!out_) {
+    // errno of the failed write (EFBIG, ENOSPC) is not kept by the stream: name the file, which is what users act on.
+    const std::string msg = fmt::format("{}: write failed (disk full or file-size limit?)", path_);
+    discard();
+    throw IoError(msg);
+  }
+}
+
+void AtomicFile::commit() {
+  if (committed_) throw InvariantError(fmt::format("AtomicFile: {} committed twice", path_));
+  flush();
+  out_.close();
+  if (out_.fail()) {
+    discard();
+    throw IoError(fmt::format("{}: write failed on close", path_));
+  }
+  std::error_code ec;
+  fs::rename(tmp_, path_, ec);
+  if (ec) {
+    discard();
+    throw IoError(fmt::format("{}: cannot rename {} to it: {}", path_, tmp_, ec.message()));
+  }
+  committed_ = true;
+}
+
+void AtomicFile::discard() noexcept {
+  if (out_.is_open()) out_.close();
+  std::error_code ec;
+  fs::remove(tmp_, ec);
+}
+
+void write_atomically(const std::string& path, const std::function<void(std::ostream&)>& write) {
+  AtomicFile f(path);
+  write(f.stream());
+  f.commit();
+}
+
 // ---------------------------------------------------------------------------------------------- map.ply
 
 void write_map_ply(const std::string& path, const std::vector<MapPoint>& points) {
-  auto out = open_for_writing(path);
+  AtomicFile file(path);
+  std::ostream& out = file.stream();
   out << "ply\nformat ascii 1.0\ncomment rtslam map: landmark positions in W [m], per-axis and largest standard "
          "deviations [m], landmark id\n"
       << "element vertex " << points.size() << "\n"
@@ -35,7 +86,7 @@ void write_map_ply(const std::string& path, const std::vector<MapPoint>& points)
     for (int k = 0; k < 3; ++k) out << ' ' << format_double(std::sqrt(std::max(0.0, sym(k, k))));
     out << ' ' << format_double(std::sqrt(std::max(0.0, largest))) << ' ' << p.id << '\n';
   }
-  close_checked(out, path);
+  file.commit();
 }
 
 std::vector<MapPoint> read_map_ply(const std::string& path) {
@@ -81,31 +132,28 @@ const char* FramesCsvWriter::header() {
          "refused,nis,nis_count,health,reset";
 }
 
-FramesCsvWriter::FramesCsvWriter(const std::string& path) : path_(path), out_(open_for_writing(path)) {
-  out_ << header() << '\n';
+FramesCsvWriter::FramesCsvWriter(const std::string& path) : file_(path), last_flush_(std::chrono::steady_clock::now()) {
+  file_.stream() << header() << '\n';
+  file_.flush();
 }
 
 void FramesCsvWriter::write(const FrameStats& s) {
+  std::ostream& out_ = file_.stream();
   out_ << s.t << ',' << s.camera << ',' << s.landmarks << ',' << s.predicted_visible << ',' << s.searched << ','
        << s.matched << ',' << s.updated << ',' << s.initialized << ',' << s.ransac_inliers << ','
        << format_double(s.t_predict_ms) << ',' << format_double(s.t_match_ms) << ',' << format_double(s.t_ransac_ms)
        << ',' << format_double(s.t_update_ms) << ',' << format_double(s.t_init_ms) << ','
        << format_double(s.t_map_ms) << ',' << format_double(s.t_total_ms) << ',' << s.refused << ','
        << format_double(s.nis) << ',' << s.nis_count << ',' << s.health << ',' << (s.reset ? 1 : 0) << '\n';
-  if (++rows_ % 100 == 0) out_.flush();
-  if (!out_) throw IoError(fmt::format("{}: write failed", path_));
+  const auto now = std::chrono::steady_clock::now();
+  if (!out_ || now - last_flush_ >= std::chrono::seconds(1)) {
+    last_flush_ = now;
+    file_.flush();  // throws on a write error
+  }
 }
 
 void FramesCsvWriter::close() {
-  if (out_.is_open()) close_checked(out_, path_);
-}
-
-FramesCsvWriter::~FramesCsvWriter() {
-  try {
-    close();
-  } catch (const Error& e) {
-    logger("io")->error("{}", e.what());
-  }
+  if (!file_.committed()) file_.commit();
 }
 
 std::vector<FrameStats> read_frames_csv(const std::string& path) {
@@ -152,19 +200,17 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
 // ---------------------------------------------------------------------------------------------- config / summary
 
 void write_config_yaml(const std::string& path, const YAML::Node& config) {
-  auto out = open_for_writing(path);
   YAML::Emitter emitter;
   emitter.SetDoublePrecision(17);
   emitter << config;
   if (!emitter.good()) throw IoError(fmt::format("{}: cannot emit YAML: {}", path, emitter.GetLastError()));
-  out << "# rtslam effective configuration: rerun with --config " << path << "\n" << emitter.c_str() << '\n';
-  close_checked(out, path);
+  write_atomically(path, [&](std::ostream& out) {
+    out << "# rtslam effective configuration: rerun with --config " << path << "\n" << emitter.c_str() << '\n';
+  });
 }
 
 void write_summary_json(const std::string& path, const nlohmann::json& summary) {
-  auto out = open_for_writing(path);
-  out << summary.dump(2) << '\n';
-  close_checked(out, path);
+  write_atomically(path, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
 }
 
 Percentiles percentiles(std::vector<double> values) {

@@ -1,12 +1,15 @@
 #pragma once
 // Output writers of `rtslam run --out DIR`: map.ply, frames.csv, config.yaml, summary.json (trajectory.txt and
 // trajectory.csv are in trajectory_io.hpp), the EuRoC ASL folder writer shared with the simulator, and the
-// terminal progress line.
+// terminal progress line. Every file is written atomically (AtomicFile): under NAME.tmp, renamed to NAME once
+// complete and flushed.
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -20,6 +23,41 @@
 #include "rtslam/io/source.hpp"
 
 namespace rtslam::io {
+
+/// A file written under `PATH.tmp` in the same folder and renamed to PATH by commit() once flushed without error: PATH
+/// is absent, the previous file or complete, never a partial file (a full disk, a file-size limit, an exception or a
+/// kill during the writing). Write errors throw IoError naming PATH at the next flush() or commit(). Destroyed
+/// without commit() (an exception), it closes and removes the .tmp; a killed process leaves the .tmp with what was
+/// flushed.
+class AtomicFile {
+ public:
+  /// Opens PATH.tmp (truncating it); throws IoError naming PATH if it cannot.
+  explicit AtomicFile(const std::string& path);
+  ~AtomicFile();
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+
+  std::ostream& stream() { return out_; }
+  /// Pushes what was written to the .tmp file; throws IoError naming PATH if a write failed.
+  void flush();
+  /// Flushes, closes and renames PATH.tmp to PATH (replacing it); throws IoError naming PATH on any failure, and
+  /// then removes the .tmp. Once only.
+  void commit();
+  /// Closes and removes the .tmp (what the destructor does without commit()).
+  void discard() noexcept;
+  bool committed() const { return committed_; }
+  const std::string& path() const { return path_; }
+  const std::string& tmp_path() const { return tmp_; }
+
+ private:
+  std::string path_;
+  std::string tmp_;
+  std::ofstream out_;
+  bool committed_ = false;
+};
+
+/// Writes PATH atomically: `write` fills the stream, then AtomicFile::commit(). Throws IoError naming PATH.
+void write_atomically(const std::string& path, const std::function<void(std::ostream&)>& write);
 
 /// One landmark for map.ply: position in W and its 3x3 position covariance.
 struct MapPoint {
@@ -61,22 +99,22 @@ struct FrameStats {
   bool reset = false;        // the robot and the map were re-initialized after this frame
 };
 
-/// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), flushed regularly.
+/// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), into frames.csv.tmp
+/// flushed at least once a second (a killed run leaves the rows so far there); close() renames it to the final
+/// name. Destroyed without close(): the .tmp is removed (AtomicFile).
 class FramesCsvWriter {
  public:
   explicit FramesCsvWriter(const std::string& path);
   void write(const FrameStats& stats);
   void close();
-  ~FramesCsvWriter();
   FramesCsvWriter(const FramesCsvWriter&) = delete;
   FramesCsvWriter& operator=(const FramesCsvWriter&) = delete;
 
   static const char* header();
 
  private:
-  std::string path_;
-  std::ofstream out_;
-  std::size_t rows_ = 0;
+  AtomicFile file_;
+  std::chrono::steady_clock::time_point last_flush_;
 };
 
 /// Reads frames.csv back (for tests and reports).

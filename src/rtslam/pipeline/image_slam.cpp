@@ -202,15 +202,18 @@ void write_overlay(const std::string& path, const ImageSlamFrame& frame, double 
 
 }  // namespace
 
-ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame,
-                               const std::function<void(const ImageSlamFrame&)>& observer) {
+ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o,
+                               const std::function<void(int, int)>& on_frame,
+                               const std::function<void(const ImageSlamFrame&)>& observer,
+                               const std::atomic<bool>* stop_requested) {
   if (!ds.source) throw ConfigError(fmt::format("dataset '{}' has no measurement source", ds.name));
-  return run_image_slam(*ds.source, ds.rig, ds.name, o, on_frame, observer);
+  return run_image_slam(*ds.source, ds.rig, ds.name, o, on_frame, observer, stop_requested);
 }
 
 ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std::string& name,
                                const ImageSlamOptions& o, const std::function<void(int, int)>& on_frame,
-                               const std::function<void(const ImageSlamFrame&)>& observer) {
+                               const std::function<void(const ImageSlamFrame&)>& observer,
+                               const std::atomic<bool>* stop_requested) {
   o.validate();
   if (o.camera >= static_cast<int>(rig.cameras.size())) {
     throw ConfigError(fmt::format("slam/camera = {}: dataset '{}' has {} camera(s)", o.camera, name,
@@ -453,7 +456,7 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
       }
     }
     if (observer || done == o.overlay_frame) {
-      const ImageSlamFrame f{done, t, &map, &dm.last_frame(), &image, &fs, &dm.grid()};
+      const ImageSlamFrame f{done, t, &map, &dm.last_frame(), &image, &fs, &dm.grid(), &result.estimate.poses.back()};
       if (done == o.overlay_frame) write_overlay(o.overlay_path, f, o.search.n_sigma);
       if (observer) observer(f);
     }
@@ -488,6 +491,10 @@ ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std
     if (on_frame) on_frame(consumed, n_total);
   };
   while (!stop) {
+    if (stop_requested != nullptr && stop_requested->load()) {
+      stop = true;
+      break;
+    }
     auto m = source.next();
     if (!m) break;
     if (const auto* imu = std::get_if<io::ImuSample>(&*m)) {

@@ -21,6 +21,7 @@
 //                 min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
 //   health:      see slam/health.hpp               (divergence and lost-tracking detection, recovery)
 //   simulation:  {preset, duration}   (only for runs on the simulator: `rtslam run` without --dataset)
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -132,17 +133,21 @@ struct ImageSlamFrame {
   const cv::Mat* image = nullptr;              // the 8-bit grey image processed (the source's own cv::Mat)
   const slam::FrameStats* stats = nullptr;     // this frame's counts and stage timings (also in result.frames)
   const strategies::InitGrid* grid = nullptr;  // the data manager's init grid as this frame left it
+  const StampedPose* pose = nullptr;           // this frame's estimate T_WR (also in result.estimate)
 };
 
 /// Runs the pipeline over a measurement stream and its rig calibration (`name` for messages). `on_frame(done,
 /// total)` after each image taken from the stream (total 0 if unknown); `observer` after each image the filter
-/// processed.
+/// processed. `stop`, when given, is read before each measurement: once true, the run ends there and returns what
+/// was processed (as max_frames does; e.g. set by a SIGINT handler).
 ImageSlamResult run_image_slam(io::Source& source, const io::Rig& rig, const std::string& name,
                                const ImageSlamOptions& options, const std::function<void(int, int)>& on_frame = {},
-                               const std::function<void(const ImageSlamFrame&)>& observer = {});
+                               const std::function<void(const ImageSlamFrame&)>& observer = {},
+                               const std::atomic<bool>* stop = nullptr);
 /// The same on a dataset's source and rig (its reference trajectory, if any, is for evaluation and is not read).
 ImageSlamResult run_image_slam(io::Dataset& dataset, const ImageSlamOptions& options,
                                const std::function<void(int, int)>& on_frame = {},
-                               const std::function<void(const ImageSlamFrame&)>& observer = {});
+                               const std::function<void(const ImageSlamFrame&)>& observer = {},
+                               const std::atomic<bool>* stop = nullptr);
 
 }  // namespace rtslam::pipeline

@@ -23,7 +23,6 @@
 #include <iostream>
 #include <limits>
 #include <optional>
-#include <regex>
 #include <thread>
 
 #include <fmt/format.h>
@@ -76,6 +75,16 @@ struct RunOptions {
 constexpr std::array<const char*, 7> kRunFiles = {"config.yaml", "trajectory.txt", "trajectory.csv", "groundtruth.txt",
                                                   "frames.csv",  "map.ply",        "summary.json"};
 
+// overlay_NNNNN.png (--overlay-frame) or its .tmp. (No std::regex: GCC 12's -O1 sanitizer build warns inside it.)
+bool is_overlay_png_name(const std::string& n) {
+  constexpr std::string_view prefix = "overlay_";
+  if (n.size() < prefix.size() + 9 || n.compare(0, prefix.size(), prefix) != 0) return false;
+  for (std::size_t k = prefix.size(); k < prefix.size() + 5; ++k)
+    if (n[k] < '0' || n[k] > '9') return false;
+  const std::string rest = n.substr(prefix.size() + 5);
+  return rest == ".png" || rest == ".png.tmp";
+}
+
 // No mixed runs: the outputs of an earlier run in --out are refused (one line naming them), or removed with --force
 // (exactly those: other files stay). Then creates --out.
 void prepare_out_dir(const RunOptions& ro) {
@@ -90,9 +99,8 @@ void prepare_out_dir(const RunOptions& ro) {
       }
     }
     if (fs::exists(out / "overlays", ec)) ours.push_back(out / "overlays");
-    const std::regex overlay_png(R"(overlay_\d{5}\.png(\.tmp)?)");
     for (const auto& e : fs::directory_iterator(out, ec)) {
-      if (std::regex_match(e.path().filename().string(), overlay_png)) ours.push_back(e.path());
+      if (is_overlay_png_name(e.path().filename().string())) ours.push_back(e.path());
     }
     if (!ro.video.empty() && fs::exists(ro.video, ec) &&
         fs::weakly_canonical(fs::path(ro.video).parent_path(), ec) == fs::weakly_canonical(out, ec)) {

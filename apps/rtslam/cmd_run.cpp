@@ -661,7 +661,7 @@ void register_run(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--view", opts->view,
                   "Serve the live web viewer on ADDR:PORT or PORT while the run goes (default 127.0.0.1:0: "
-                  "loopback, a free port; the URL is printed). The run never waits for a browser; afterwards "
+                  "loopback, a free port; the URL is printed). The run waits for a browser only with --view-wait; afterwards "
                   "the viewer keeps serving until Ctrl-C (see --view-hold). docs/viewer.md")
       ->expected(0, 1)
       ->type_name("[ADDR:PORT]");

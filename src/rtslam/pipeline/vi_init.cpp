@@ -245,9 +245,6 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     bool ok = false;
     std::string reason;
     Vector3d v0 = Vector3d::Zero(), g = Vector3d::Zero();
-    Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Zero();
-    double sse_rows = 0.0;
-    int n_rows = 0;
     std::vector<double> rms_px;    // per feature of the subset
     std::vector<double> depth;     // per feature: distance from camera 0 (NaN behind a camera)
     Eigen::VectorXd residual;      // the stacked rows A p_f + B θ − c (weighted)
@@ -289,7 +286,6 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
         fb[j].a += A.transpose() * c;
         V += B.transpose() * B;
         b += B.transpose() * c;
-        sol.n_rows += 2;  // [b]× has rank 2
       }
     }
     Eigen::Matrix<double, 6, 6> S = V;
@@ -320,7 +316,6 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     }
     sol.g = g_of(0.5 * (lo + hi)).normalized() * o.gravity;
     sol.v0 = Lvv.solve(s.head<3>() - Svg * sol.g);
-    sol.S = S;
     if (!sol.g.allFinite() || !sol.v0.allFinite()) {
       sol.reason = "the linear system is degenerate";
       return sol;
@@ -347,7 +342,6 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
         Vector3d c;
         if (rows(t, i, A, B, c)) {
           const Vector3d r = weight(j, i) * (A * p_f + B * theta - c);
-          sol.sse_rows += r.squaredNorm();
           sol.residual.segment<3>(rr) = r;
         }
         rr += 3;

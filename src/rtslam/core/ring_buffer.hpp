@@ -34,6 +34,10 @@ class RingBuffer {
     RTSLAM_CHECK(size_ > 0, "RingBuffer::front on an empty buffer");
     return buf_[head_];
   }
+  T& front() {
+    RTSLAM_CHECK(size_ > 0, "RingBuffer::front on an empty buffer");
+    return buf_[head_];
+  }
   const T& back() const {
     RTSLAM_CHECK(size_ > 0, "RingBuffer::back on an empty buffer");
     return buf_[(head_ + size_ - 1) % buf_.size()];

@@ -12,7 +12,8 @@
 // estimate to a reference afterwards. Seeded: the same options and data give the same output.
 //
 // YAML layout (every key optional, unknown keys are errors naming the key; docs/configuration.md):
-//   slam:        {seed, robot: constant_velocity|inertial, consistency: none|oc, initial_velocity_std, state_capacity, max_frames, camera, rate_hz,
+//   slam:        {seed, robot: constant_velocity|inertial, data_manager: active_search, map_manager: policy,
+//                 consistency: none|oc|fej, initial_velocity_std, state_capacity, max_frames, camera, rate_hz,
 //                 known_landmarks, known_landmarks_convention, overlay_frame, overlay_path}
 //   motion:      {sigma_v, sigma_w}                (constant-velocity robot)
 //   imu:         see inertial_init.hpp             (inertial robot)
@@ -24,6 +25,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -38,13 +40,16 @@
 #include "rtslam/slam/health.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/strategies/active_search.hpp"
+#include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
 
 namespace rtslam::pipeline {
 
 struct ImageSlamOptions {
   std::uint64_t seed = 1;
-  std::string robot = "constant_velocity";  // constant_velocity | inertial
+  std::string robot = "constant_velocity";  // a registered robot type (builder.hpp): constant_velocity | inertial
+  std::string data_manager = "active_search";  // a registered data manager type (builder.hpp)
+  std::string map_manager = "policy";          // a registered map manager type (builder.hpp)
   // none: plain EKF; oc: observability-constrained EKF (filter/state.hpp): the filter tracks the unobservable
   // global translation and rotation, constrains the robot's transition and projects every measurement Jacobian so
   // that the linearized system cannot gain information along them (consistent covariances, MATH.md "Consistency");
@@ -66,6 +71,7 @@ struct ImageSlamOptions {
   models::ConstantVelocityParams motion;
   InertialOptions imu;
   strategies::ActiveSearchOptions search;
+  strategies::KnownAssociationOptions association;  // the known_association data manager's (point data; not in YAML)
   strategies::MapPolicyOptions map;
   slam::HealthOptions health;
   void validate() const;
@@ -134,6 +140,34 @@ struct ImageSlamFrame {
   const slam::FrameStats* stats = nullptr;     // this frame's counts and stage timings (also in result.frames)
   const strategies::InitGrid* grid = nullptr;  // the data manager's init grid as this frame left it
   const StampedPose* pose = nullptr;           // this frame's estimate T_WR (also in result.estimate)
+};
+
+/// Image SLAM on a measurement stream, in steps: the System that build_system (builder.hpp) makes from the options
+/// and the rig, fed from the stream (the images of slam/camera, stamped t_cam + t_d; IMU samples for inertial
+/// robots). step() feeds measurements until the filter has processed at least one more image (one fed image can
+/// release several: a visual-inertial start replays its window) and returns false once the stream, max_frames or
+/// `stop` ended the run; finish() then returns the result. For Python's stepping and live nodes; run_image_slam is
+/// the whole loop.
+class ImageSlam {
+ public:
+  ImageSlam(io::Source& source, const io::Rig& rig, std::string name, const ImageSlamOptions& options);
+  ~ImageSlam();
+  ImageSlam(const ImageSlam&) = delete;
+  ImageSlam& operator=(const ImageSlam&) = delete;
+  /// After each image the filter processed (see ImageSlamFrame).
+  void set_observer(std::function<void(const ImageSlamFrame&)> observer);
+  /// (images taken from the stream, their total or 0 if unknown) after each image taken.
+  void set_progress(std::function<void(int, int)> progress);
+  bool step(const std::atomic<bool>* stop = nullptr);
+  /// What was collected so far (estimate and per-frame statistics grow with each step).
+  const ImageSlamResult& result() const;
+  slam::System& system();
+  /// The final map, estimates and counts; DataError if the robot never started. Call once, at the end.
+  ImageSlamResult finish();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 /// Runs the pipeline over a measurement stream and its rig calibration (`name` for messages). `on_frame(done,

@@ -7,6 +7,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/sim/trajectory.hpp"
+#include "rtslam/pipeline/builder.hpp"
 #include "rtslam/slam/system.hpp"
 
 namespace rtslam::pipeline {
@@ -91,6 +92,42 @@ StampedPose stamped(TimeNs t, const math::Pose& T_WR) {
 
 }  // namespace
 
+// The demo's camera as a rig calibration (the builder makes the robot's sensors from a rig).
+io::Rig demo_rig() {
+  const models::CameraIntrinsics in = euroc_cam0_intrinsics();
+  io::CameraCalibration cam;
+  cam.name = "cam0";
+  cam.width = in.width;
+  cam.height = in.height;
+  cam.fx = in.fx;
+  cam.fy = in.fy;
+  cam.cx = in.cx;
+  cam.cy = in.cy;
+  cam.distortion = io::DistortionModel::RadTan;
+  cam.distortion_coeffs = in.coeffs;
+  cam.T_RS = euroc_cam0_T_RS().isometry();
+  io::Rig rig;
+  rig.cameras.push_back(cam);
+  return rig;
+}
+
+namespace {
+
+// Collects the estimate and the statistics of each step.
+struct DemoCollector final : slam::Observer {
+  explicit DemoCollector(PointDemoResult& r) : result(r) {}
+  void on_step(const slam::StepReport& s) override {
+    result.frames.push_back(s.stats);
+    StampedPose est = stamped(s.raw.t, s.robot.pose());
+    est.v_WR = s.map.state().mean(s.robot.block()).segment<3>(models::ConstantVelocityIndex::kV);
+    est.cov = s.map.state().cov(s.robot.block()).topLeftCorner<6, 6>();
+    result.estimate.poses.push_back(est);
+  }
+  PointDemoResult& result;
+};
+
+}  // namespace
+
 PointDemoResult run_point_demo(const PointDemoOptions& o, const std::function<void(int, int)>& on_frame) {
   o.validate();
   Rng rng(o.seed);
@@ -101,59 +138,59 @@ PointDemoResult run_point_demo(const PointDemoOptions& o, const std::function<vo
   const math::Pose T_RS = euroc_cam0_T_RS();
   const models::PinholeCamera camera(intr);
 
-  // The SLAM system: one map, one constant-velocity robot with one camera.
-  slam::World world;
-  filter::StateOptions so;
-  so.tangent_capacity = o.state_capacity;
-  slam::Map& map = world.add_map(so);
-  auto map_manager = std::make_unique<strategies::PolicyMapManager>(o.map);
-  const strategies::PolicyMapManager& mm = *map_manager;
-  slam::System system(world, map, std::move(map_manager));
-
-  const sim::KinematicState s0 = trajectory->at(trajectory->t_begin());
-  auto robot = std::make_unique<slam::ConstantVelocityRobot>(o.motion);
-  slam::Sensor& sensor = robot->add_sensor(std::make_unique<slam::PinholeSensor>("cam0", intr, T_RS));
+  // The SLAM system, built as every other: one map, one constant-velocity robot with one camera whose data manager
+  // knows the association of the simulated points.
+  ImageSlamOptions so;
+  so.seed = o.seed;
+  so.robot = "constant_velocity";
+  so.data_manager = "known_association";
+  so.state_capacity = o.state_capacity;
+  so.initial_velocity_std = o.initial_velocity_std;
+  so.motion = o.motion;
+  so.association = o.association;
+  so.map = o.map;
+  so.health.enabled = false;  // the demo judges itself against its simulated truth (and has no recovery to show)
   // Gauge: the first robot pose defines W (zero covariance, true initial pose); v, ω: zero mean, documented std.
+  const sim::KinematicState s0 = trajectory->at(trajectory->t_begin());
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
   x0.head<3>() = s0.p_WR;
   x0.segment<4>(3) = math::quat_to_wxyz(s0.q_WR);
   Eigen::MatrixXd P0 = Eigen::MatrixXd::Zero(12, 12);
   P0.bottomRightCorner<6, 6>() = o.initial_velocity_std * o.initial_velocity_std * Eigen::MatrixXd::Identity(6, 6);
-  map.add_robot(std::move(robot), x0, P0, trajectory->t_begin());
-  sensor.set_data_manager(std::make_unique<strategies::KnownAssociationDataManager>(
-      o.association, mm, intr.width, intr.height, o.seed * 7919 + 1));
+  const io::Rig rig = demo_rig();
+  BuiltSystem built = build_system(BuildContext{so, rig, "points demo", x0, P0});
+  slam::System& system = *built.system;
 
   PointDemoResult result;
+  DemoCollector collector(result);
+  system.add_observer(collector);
   const int n_frames = static_cast<int>(std::floor(o.duration_s * o.rate_hz)) + 1;
   result.frames.reserve(static_cast<size_t>(n_frames));
-  strategies::RawPoints raw;
-  raw.sensor_id = sensor.id();
+  const int sensor_id = built.cameras.front().sensor->id();
   const double margin = o.association.margin_px;
   for (int k = 0; k < n_frames; ++k) {
     const TimeNs t = trajectory->t_begin() + from_seconds(k / o.rate_hz);
     const sim::KinematicState s = trajectory->at(t);
     const math::Pose T_WR{s.q_WR, s.p_WR};
     const math::Pose T_WS = T_WR * T_RS;
-    raw.t = t;
-    raw.points.clear();
+    auto raw = system.spare<strategies::RawPoints>();
+    raw->t = t;
+    raw->sensor_id = sensor_id;
+    raw->points.clear();
     for (size_t i = 0; i < points.size(); ++i) {
       Eigen::Vector2d z;
       if (!camera.project(T_WS.inverse_transform(points[i]), z)) continue;
       z += Eigen::Vector2d(randn(rng), randn(rng)) * o.sigma_px;
       if (!camera.in_image(z, margin)) continue;
-      raw.points.push_back({static_cast<int>(i), z});
+      raw->points.push_back({static_cast<int>(i), z});
     }
-    const slam::FrameStats stats = system.process(raw);
-    result.frames.push_back(stats);
-    StampedPose est = stamped(t, map.robots()[0]->pose());
-    est.v_WR = map.state().mean(map.robots()[0]->block()).segment<3>(7);
-    est.cov = map.state().cov(map.robots()[0]->block()).topLeftCorner<6, 6>();
-    result.estimate.poses.push_back(est);
+    system.feed(std::move(raw));
     StampedPose gt = stamped(t, T_WR);
     gt.v_WR = s.v_WR;
     result.groundtruth.poses.push_back(gt);
     if (on_frame) on_frame(k + 1, n_frames);
   }
+  const slam::Map& map = system.map();
   result.landmarks_final = static_cast<int>(map.landmarks().size());
   for (const auto& l : map.landmarks()) {
     result.landmarks_created = std::max(result.landmarks_created, l->id() + 1);

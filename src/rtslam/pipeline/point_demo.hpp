@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "rtslam/core/trajectory.hpp"
+#include "rtslam/io/calibration.hpp"
 #include "rtslam/models/robots/constant_velocity.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/math/rotation.hpp"
@@ -21,6 +22,8 @@ namespace rtslam::pipeline {
 /// EuRoC MAV cam0 (V1_01 sensor.yaml): 752x480, pinhole + radial-tangential, and its T_BS (our T_RS).
 models::CameraIntrinsics euroc_cam0_intrinsics();
 math::Pose euroc_cam0_T_RS();
+/// The demo camera as a rig calibration (cam0: the intrinsics and T_RS above).
+io::Rig demo_rig();
 
 /// RT-SLAM's association defaults, with the demo room's inverse-depth prior (d_min = 1 m, see below).
 strategies::KnownAssociationOptions demo_association_defaults();

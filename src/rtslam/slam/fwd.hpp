@@ -10,4 +10,7 @@ class Landmark;
 struct Observation;
 class DataManager;
 class MapManager;
+class System;
+struct RawData;
+struct HealthOptions;
 }  // namespace rtslam::slam

@@ -12,6 +12,8 @@ namespace rtslam::slam {
 /// Raw data of one sensor at one time (an image, a list of simulated point measurements, ...).
 struct RawData {
   virtual ~RawData() = default;
+  /// Drops what the datum holds (pixels) once the System is done with it; the object itself is reused.
+  virtual void release() {}
   TimeNs t = 0;
   int sensor_id = 0;
 };

@@ -45,6 +45,8 @@ class Map {
   void remove_landmark(Landmark& lmk);
   const std::vector<std::unique_ptr<Landmark>>& landmarks() const { return landmarks_; }
   Landmark* find_landmark(int id) const;
+  /// A new sensor (or input stream) id, unique in this map.
+  int take_sensor_id() { return next_sensor_id_++; }
 
  private:
   void create_observations(Landmark& lmk);
@@ -54,7 +56,6 @@ class Map {
   int next_landmark_id_ = 0;
   int next_sensor_id_ = 0;
   friend class Robot;
-  int take_sensor_id() { return next_sensor_id_++; }
 };
 
 class World {

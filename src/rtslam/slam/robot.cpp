@@ -1,10 +1,12 @@
 #include "rtslam/slam/robot.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/slam/health.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/sensor.hpp"
@@ -44,6 +46,22 @@ void Robot::allocate_block(const Eigen::VectorXd& mean, const Eigen::MatrixXd& c
   block_ = *block;
 }
 
+void Robot::assign_sensor_ids(Map& map) {
+  for (auto& s : sensors_)
+    if (s->id() < 0) s->attach(*this, map.take_sensor_id());
+}
+
+void Robot::add_input(const RawData& input) {
+  throw DataError(fmt::format("robot '{}' takes no proprioceptive input (datum at t = {} ns)", name_, input.t));
+}
+
+Eigen::VectorXd Robot::reanchor(const Eigen::VectorXd& x0, const Eigen::VectorXd& last_good,
+                                const HealthOptions& /*health*/) const {
+  Eigen::VectorXd x = x0;
+  x.head<7>() = last_good.head<7>();
+  return x;
+}
+
 void Robot::attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t0) {
   RTSLAM_CHECK(map_ == nullptr, "robot already attached to a map");
   map_ = &map;
@@ -55,7 +73,7 @@ void Robot::attach(Map& map, int id, const Eigen::VectorXd& mean, const Eigen::M
   }
   id_ = id;
   time_ = t0;
-  for (auto& s : sensors_) s->attach(*this, map.take_sensor_id());
+  for (auto& s : sensors_) s->attach(*this, s->id() >= 0 ? s->id() : map.take_sensor_id());
 }
 
 void Robot::reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeNs t) {
@@ -139,6 +157,39 @@ void InertialRobot::add_imu(TimeNs t, const models::ImuMeasurement& m) {
     return;
   }
   pending_.push_back(Sample{t, m});
+}
+
+void InertialRobot::add_input(const RawData& input) {
+  const auto* imu = dynamic_cast<const ImuData*>(&input);
+  if (imu == nullptr) {
+    throw DataError(fmt::format("robot '{}': its input at t = {} ns is not an IMU sample", name(), input.t));
+  }
+  add_imu(imu->t, imu->m);
+}
+
+Eigen::VectorXd InertialRobot::reanchor(const Eigen::VectorXd& x0_in, const Eigen::VectorXd& last_good,
+                                        const HealthOptions& health) const {
+  using I = models::InertialIndex;
+  Eigen::VectorXd x0 = x0_in;
+  // Heading: of the body axis most orthogonal to gravity, in both frames.
+  const Eigen::Quaterniond q_new = math::quat_from_wxyz(x0.segment<4>(I::kQ));
+  const Eigen::Quaterniond q_old = math::quat_from_wxyz(last_good.segment<4>(I::kQ));
+  const Eigen::Vector3d up_R = q_new.conjugate() * Eigen::Vector3d::UnitZ();
+  int k = 0;
+  up_R.cwiseAbs().minCoeff(&k);
+  const Eigen::Vector3d h_new = q_new * Eigen::Vector3d::Unit(k), h_old = q_old * Eigen::Vector3d::Unit(k);
+  const Eigen::Quaterniond Rz(Eigen::AngleAxisd(std::atan2(h_old.y(), h_old.x()) - std::atan2(h_new.y(), h_new.x()),
+                                                Eigen::Vector3d::UnitZ()));
+  x0.segment<3>(I::kP) = last_good.segment<3>(I::kP);
+  x0.segment<4>(I::kQ) = math::quat_to_wxyz((Rz * q_new).normalized());
+  x0.segment<3>(I::kV) = Rz * x0.segment<3>(I::kV);
+  x0.segment<3>(I::kG) = Rz * x0.segment<3>(I::kG);
+  if (last_good.segment<3>(I::kAb).norm() <= 0.5 * health.max_accel_bias &&
+      last_good.segment<3>(I::kWb).norm() <= 0.5 * health.max_gyro_bias) {
+    x0.segment<3>(I::kAb) = last_good.segment<3>(I::kAb);
+    if (x0.segment<3>(I::kWb).isZero()) x0.segment<3>(I::kWb) = last_good.segment<3>(I::kWb);
+  }
+  return x0;
 }
 
 std::optional<TimeNs> InertialRobot::imu_coverage() const {

@@ -13,8 +13,14 @@
 #include "rtslam/models/robots/constant_velocity.hpp"
 #include "rtslam/models/robots/inertial.hpp"
 #include "rtslam/slam/fwd.hpp"
+#include "rtslam/slam/managers.hpp"
 
 namespace rtslam::slam {
+
+/// One IMU sample (IMU clock): a proprioceptive input of the robot whose input id is sensor_id (System::add_robot).
+struct ImuData final : RawData {
+  models::ImuMeasurement m;
+};
 
 class Robot {
  public:
@@ -34,6 +40,16 @@ class Robot {
   math::Pose pose() const;
   /// Moves the robot (mean and covariance) to time t. Returns false if t is before the robot's time.
   virtual bool predict_to(TimeNs t) = 0;
+  /// Robots driven by proprioceptive inputs (IMU samples) can be predicted only up to their last input: the
+  /// System holds exteroceptive data until the inputs cover them.
+  virtual bool needs_inputs() const { return false; }
+  /// One proprioceptive input (System::feed routes them); DataError for a robot that takes none.
+  virtual void add_input(const RawData& input);
+  /// A restart's state: the start's state x0 (in the starter's own frame) moved to where the robot last was
+  /// healthy (`last_good`, the robot's block mean then), so that a restart keeps the world frame. The base keeps
+  /// x0's model states and takes the pose of last_good.
+  virtual Eigen::VectorXd reanchor(const Eigen::VectorXd& x0, const Eigen::VectorXd& last_good,
+                                   const HealthOptions& health) const;
   virtual filter::BlockLayout layout() const = 0;
   /// The block's rows (tangent × 6) of the directions no exteroceptive measurement can observe, at the block mean
   /// x: a global translation t and rotation φ of the world, [t φ] (filter observability constraints). For a pose
@@ -44,6 +60,9 @@ class Robot {
   static constexpr int kNullspaceDim = 6;
 
   Sensor& add_sensor(std::unique_ptr<Sensor> sensor);
+  /// Gives the sensors without an id one from the map's counter (System::add_robot: data name their sensor before
+  /// the robot is in the map).
+  void assign_sensor_ids(Map& map);
   const std::vector<std::unique_ptr<Sensor>>& sensors() const { return sensors_; }
 
   /// Called by Map::add_robot: allocates the block with the given prior (gauge: the first robot's pose defines
@@ -110,6 +129,14 @@ class InertialRobot final : public Robot {
   std::optional<TimeNs> imu_coverage() const;
   /// Integrates to t; DataError if the IMU does not cover t. False if t is before the robot's time.
   bool predict_to(TimeNs t) override;
+  bool needs_inputs() const override { return true; }
+  /// An ImuData sample (add_imu).
+  void add_input(const RawData& input) override;
+  /// Position of last_good; attitude, velocity and gravity of x0 turned about the vertical so that the heading of
+  /// the body axis most orthogonal to gravity is last_good's; biases of last_good when plausible (half the
+  /// health monitor's bounds), else x0's.
+  Eigen::VectorXd reanchor(const Eigen::VectorXd& x0, const Eigen::VectorXd& last_good,
+                           const HealthOptions& health) const override;
   filter::BlockLayout layout() const override { return static_layout(); }
   /// [p q v a_b ω_b g]: p, v and the gravity vector g (all in W) move with the world; the biases do not. With g a
   /// state, every rotation of the world is unobservable, not only the yaw.

@@ -39,7 +39,7 @@
 namespace rtslam::strategies {
 
 /// One grey image of one camera (non-owning: the pixels must live while process() runs).
-struct RawImage final : slam::RawData {
+struct RawImage : slam::RawData {
   vision::ImageView image;
 };
 

@@ -1,0 +1,166 @@
+#include "rtslam/pipeline/builder.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/pipeline/starters.hpp"
+#include "rtslam/strategies/active_search.hpp"
+#include "rtslam/strategies/known_association.hpp"
+#include "rtslam/strategies/map_policies.hpp"
+
+namespace rtslam::pipeline {
+
+namespace {
+
+template <class Map>
+std::string names_of(const Map& m) {
+  std::vector<std::string> n;
+  for (const auto& [k, v] : m) n.push_back(k);
+  return fmt::format("{}", fmt::join(n, ", "));
+}
+
+// The data managers' seed: one per run, derived from slam/seed.
+std::uint64_t dm_seed(const ImageSlamOptions& o) { return o.seed * 7919 + 1; }
+
+}  // namespace
+
+Registry Registry::builtin() {
+  Registry r;
+  r.add_robot(
+      "constant_velocity",
+      [](const BuildContext& c) -> std::unique_ptr<slam::Robot> {
+        return std::make_unique<slam::ConstantVelocityRobot>(c.options.motion);
+      },
+      [](const BuildContext& c, const BuiltSystem& b) -> std::unique_ptr<slam::RobotStarter> {
+        const ImageSlamOptions& o = c.options;
+        std::optional<KnownLandmarkSet> known;
+        if (!o.known_landmarks.empty()) {
+          known = load_known_landmarks(o.known_landmarks, o.known_landmarks_convention);
+          const math::Pose& T_RS = b.cameras.front().T_RS;
+          if (o.known_landmarks_convention == "scenelib" &&
+              (T_RS.p.norm() > 1e-9 || T_RS.q.angularDistance(Eigen::Quaterniond::Identity()) > 1e-9)) {
+            throw ConfigError(fmt::format("slam/known_landmarks_convention = scenelib: the camera of '{}' must be the "
+                                          "robot (T_RS = identity); use 'robot' when T_RS carries the frame change",
+                                          c.dataset));
+          }
+        }
+        return std::make_unique<PoseStarter>(o.initial_velocity_std, std::move(known), c.initial_state,
+                                             c.initial_cov);
+      });
+  r.add_robot(
+      "inertial",
+      [](const BuildContext& c) -> std::unique_ptr<slam::Robot> {
+        if (!c.options.known_landmarks.empty()) {
+          throw ConfigError("slam/known_landmarks is not supported with slam/robot = inertial yet");
+        }
+        return std::make_unique<slam::InertialRobot>(inertial_params(c.rig.imu, c.options.imu, c.dataset));
+      },
+      [](const BuildContext& c, const BuiltSystem& b) -> std::unique_ptr<slam::RobotStarter> {
+        const BuiltCamera& cam = b.cameras.front();
+        return std::make_unique<InertialStarter>(
+            c.options.imu, cam.intrinsics, cam.T_RS,
+            dynamic_cast<strategies::ActiveSearchDataManager*>(cam.data_manager));
+      });
+  r.add_data_manager("active_search", [](const BuildContext& c, const slam::MapManager& mm,
+                                         const models::CameraIntrinsics& in) -> std::unique_ptr<slam::DataManager> {
+    return std::make_unique<strategies::ActiveSearchDataManager>(c.options.search, mm, in.width, in.height,
+                                                                 dm_seed(c.options));
+  });
+  r.add_data_manager("known_association", [](const BuildContext& c, const slam::MapManager& mm,
+                                             const models::CameraIntrinsics& in) -> std::unique_ptr<slam::DataManager> {
+    return std::make_unique<strategies::KnownAssociationDataManager>(c.options.association, mm, in.width, in.height,
+                                                                     dm_seed(c.options));
+  });
+  r.add_map_manager("policy", [](const BuildContext& c) -> std::unique_ptr<slam::MapManager> {
+    return std::make_unique<strategies::PolicyMapManager>(c.options.map);
+  });
+  return r;
+}
+
+void Registry::add_robot(const std::string& name, RobotMaker robot, StarterMaker starter) {
+  robots_[name] = RobotEntry{std::move(robot), std::move(starter)};
+}
+void Registry::add_data_manager(const std::string& name, DataManagerMaker maker) {
+  data_managers_[name] = std::move(maker);
+}
+void Registry::add_map_manager(const std::string& name, MapManagerMaker maker) {
+  map_managers_[name] = std::move(maker);
+}
+std::vector<std::string> Registry::robot_names() const {
+  std::vector<std::string> n;
+  for (const auto& [k, v] : robots_) n.push_back(k);
+  return n;
+}
+
+void Registry::check(const ImageSlamOptions& o) const {
+  if (!robots_.count(o.robot)) {
+    throw ConfigError(fmt::format("slam/robot = '{}' must be one of: {}", o.robot, names_of(robots_)));
+  }
+  if (!data_managers_.count(o.data_manager)) {
+    throw ConfigError(
+        fmt::format("slam/data_manager = '{}' must be one of: {}", o.data_manager, names_of(data_managers_)));
+  }
+  if (!map_managers_.count(o.map_manager)) {
+    throw ConfigError(fmt::format("slam/map_manager = '{}' must be one of: {}", o.map_manager, names_of(map_managers_)));
+  }
+}
+
+BuiltSystem Registry::build(const BuildContext& c) const {
+  const ImageSlamOptions& o = c.options;
+  o.validate();
+  check(o);
+  if (o.camera >= static_cast<int>(c.rig.cameras.size())) {
+    throw ConfigError(fmt::format("slam/camera = {}: dataset '{}' has {} camera(s)", o.camera, c.dataset,
+                                  c.rig.cameras.size()));
+  }
+  BuiltSystem b;
+  b.world = std::make_unique<slam::World>();
+  filter::StateOptions so;
+  so.tangent_capacity = o.state_capacity;
+  if (o.consistency == "oc") so.nullspace_dim = slam::Robot::kNullspaceDim;
+  b.map = &b.world->add_map(so);
+  std::unique_ptr<slam::MapManager> mm = map_managers_.at(o.map_manager)(c);
+  b.map_manager = mm.get();
+  slam::SystemOptions sys;
+  sys.health = o.health;
+  sys.max_steps = o.max_frames;
+  // The starters' IMU window: the longest a start looks back, with room for a 1.5× faster IMU than calibrated.
+  const double window_s = 2.0 * o.imu.init_window_s + o.imu.vi_init.max_window_s + 2.0;
+  const double rate = c.rig.imu ? std::max(c.rig.imu->rate_hz, 1.0) : 200.0;
+  sys.input_window = static_cast<std::size_t>(std::max(64.0, window_s * rate * 1.5));
+  b.system = std::make_unique<slam::System>(*b.world, *b.map, std::move(mm), sys);
+
+  const RobotEntry& entry = robots_.at(o.robot);
+  std::unique_ptr<slam::Robot> robot = entry.robot(c);
+  const io::CameraCalibration& cal = c.rig.cameras[static_cast<std::size_t>(o.camera)];
+  BuiltCamera cam;
+  cam.rig_index = o.camera;
+  cam.intrinsics = to_intrinsics(cal);
+  cam.T_RS = math::Pose::from_isometry(cal.T_RS);
+  cam.sensor = &robot->add_sensor(std::make_unique<slam::PinholeSensor>(cal.name, cam.intrinsics, cam.T_RS));
+  if (o.robot == "inertial" && o.imu.estimate_extrinsics) {
+    Eigen::Matrix<double, 6, 1> var;
+    const double rot = o.imu.extrinsics_std_deg * M_PI / 180.0;
+    var << Eigen::Vector3d::Constant(o.imu.extrinsics_std_m * o.imu.extrinsics_std_m),
+        Eigen::Vector3d::Constant(rot * rot);
+    cam.sensor->estimate_extrinsics(var.asDiagonal());
+  }
+  std::unique_ptr<slam::DataManager> dm = data_managers_.at(o.data_manager)(c, *b.map_manager, cam.intrinsics);
+  cam.data_manager = dm.get();
+  if (o.consistency == "fej") {
+    if (auto* as = dynamic_cast<strategies::ActiveSearchDataManager*>(dm.get())) as->set_first_estimate_jacobians(true);
+    robot->set_first_estimate_jacobians(true);
+  }
+  cam.sensor->set_data_manager(std::move(dm));
+  b.cameras.push_back(cam);
+  b.robot = robot.get();
+  std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, b);
+  b.starter = starter.get();
+  b.input_id = b.system->add_robot(std::move(robot), std::move(starter));
+  return b;
+}
+
+BuiltSystem build_system(const BuildContext& context) { return Registry::builtin().build(context); }
+
+}  // namespace rtslam::pipeline

@@ -1,0 +1,86 @@
+#pragma once
+// The builder: turns a configuration (ImageSlamOptions) and a rig calibration into a slam::System, with the types
+// named in the configuration looked up in a Registry. The built-in entries:
+//   robots (slam/robot):               constant_velocity (PoseStarter), inertial (InertialStarter)
+//   data managers (slam/data_manager): active_search (images), known_association (point measurements: the demo)
+//   map managers (slam/map_manager):   policy
+// A user's own robot, data manager or map manager is one Registry::add_* call away (docs/architecture.md); the
+// System built is the only wiring of the object model (the CLI, the points demo, the Python module and the ROS node
+// all come through build_system).
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rtslam/io/calibration.hpp"
+#include "rtslam/pipeline/image_slam.hpp"
+#include "rtslam/slam/system.hpp"
+
+namespace rtslam::pipeline {
+
+/// What the parts are made from. `initial_state`: a constant-velocity start other than the origin (the points demo
+/// starts at its simulated pose; 13 entries, `initial_cov` 12×12 or empty for the default prior).
+struct BuildContext {
+  const ImageSlamOptions& options;
+  const io::Rig& rig;
+  std::string dataset;  // for messages
+  std::optional<Eigen::VectorXd> initial_state = std::nullopt;
+  Eigen::MatrixXd initial_cov = {};
+};
+
+/// One camera of the built robot: its sensor and data manager, and its model.
+struct BuiltCamera {
+  int rig_index = 0;
+  slam::Sensor* sensor = nullptr;
+  slam::DataManager* data_manager = nullptr;
+  models::CameraIntrinsics intrinsics;
+  math::Pose T_RS;
+};
+
+struct BuiltSystem {
+  std::unique_ptr<slam::World> world;
+  slam::Map* map = nullptr;
+  std::unique_ptr<slam::System> system;
+  slam::Robot* robot = nullptr;
+  slam::RobotStarter* starter = nullptr;
+  int input_id = -1;  // the robot's proprioceptive stream (slam::ImuData::sensor_id)
+  std::vector<BuiltCamera> cameras;
+  const slam::MapManager* map_manager = nullptr;
+};
+
+class Registry {
+ public:
+  using RobotMaker = std::function<std::unique_ptr<slam::Robot>(const BuildContext&)>;
+  /// Made once the robot has its sensors and their data managers (`built.cameras` filled).
+  using StarterMaker = std::function<std::unique_ptr<slam::RobotStarter>(const BuildContext&, const BuiltSystem&)>;
+  using DataManagerMaker = std::function<std::unique_ptr<slam::DataManager>(
+      const BuildContext&, const slam::MapManager&, const models::CameraIntrinsics&)>;
+  using MapManagerMaker = std::function<std::unique_ptr<slam::MapManager>(const BuildContext&)>;
+
+  /// The built-in types (header comment).
+  static Registry builtin();
+  void add_robot(const std::string& name, RobotMaker robot, StarterMaker starter);
+  void add_data_manager(const std::string& name, DataManagerMaker maker);
+  void add_map_manager(const std::string& name, MapManagerMaker maker);
+  std::vector<std::string> robot_names() const;
+
+  /// ConfigError naming the key and the registered names when a type is unknown.
+  void check(const ImageSlamOptions& options) const;
+  BuiltSystem build(const BuildContext& context) const;
+
+ private:
+  struct RobotEntry {
+    RobotMaker robot;
+    StarterMaker starter;
+  };
+  std::map<std::string, RobotEntry> robots_;
+  std::map<std::string, DataManagerMaker> data_managers_;
+  std::map<std::string, MapManagerMaker> map_managers_;
+};
+
+/// Registry::builtin().build(context).
+BuiltSystem build_system(const BuildContext& context);
+
+}  // namespace rtslam::pipeline

@@ -25,6 +25,7 @@
 #include "rtslam/pipeline/image_slam.hpp"
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/robot.hpp"
+#include "rtslam/slam/system.hpp"
 
 namespace py = pybind11;
 using namespace rtslam;
@@ -129,6 +130,80 @@ PyResult to_py(const pipeline::ImageSlamResult& r, const std::optional<Trajector
   return out;
 }
 
+// The dataset of a run: 'KIND:PATH' as `rtslam run --dataset` opens it, or the simulator.
+io::Dataset open_run_dataset(const pipeline::ImageSlamOptions& options, const std::optional<std::string>& dataset) {
+  if (!dataset) return pipeline::make_sim_dataset(options);
+  io::DatasetOptions dopt;
+  dopt.use_imu = options.robot == "inertial";
+  dopt.cameras = {options.camera};
+  dopt.rate_hz = options.rate_hz;
+  return io::open_dataset(*dataset, dopt);
+}
+
+Eigen::Matrix<double, 7, 1> pose_vector(const StampedPose& p) {
+  Eigen::Matrix<double, 7, 1> v;
+  v << p.p_WR, p.q_WR.w(), p.q_WR.x(), p.q_WR.y(), p.q_WR.z();
+  return v;
+}
+
+// A run driven from Python, one processed image at a time (pipeline::ImageSlam).
+class Session {
+ public:
+  Session(const pipeline::ImageSlamOptions& options, const std::optional<std::string>& dataset) {
+    options.validate();
+    py::gil_scoped_release nogil;
+    ds_ = open_run_dataset(options, dataset);
+    if (!ds_.source) throw ConfigError("dataset '" + ds_.name + "' has no measurement source");
+    slam_ = std::make_unique<pipeline::ImageSlam>(*ds_.source, ds_.rig, ds_.name, options);
+  }
+  // The next processed image as a dict (frame statistics + index + pose), or None at the end of the run.
+  py::object step() {
+    if (!slam_) throw DataError("the session is finished");
+    bool more = false;
+    {
+      py::gil_scoped_release nogil;
+      more = slam_->step();
+    }
+    const pipeline::ImageSlamResult& r = slam_->result();
+    if (!more || r.frames.empty()) return py::none();
+    py::dict d = frame_dict(r.frames.back());
+    d["index"] = static_cast<long>(r.frames.size()) - 1;
+    d["pose"] = pose_vector(r.estimate.poses.back());
+    return d;
+  }
+  // The current map's landmark positions (M×3, W).
+  Array landmarks() {
+    if (!slam_) throw DataError("the session is finished");
+    const slam::Map& map = slam_->system().map();
+    const Eigen::VectorXd& mean = map.state().mean_vector();
+    Array out({static_cast<py::ssize_t>(map.landmarks().size()), py::ssize_t{3}});
+    auto a = out.mutable_unchecked<2>();
+    for (std::size_t i = 0; i < map.landmarks().size(); ++i) {
+      const Eigen::Vector3d p = map.landmarks()[i]->position(mean);
+      for (int k = 0; k < 3; ++k) a(static_cast<py::ssize_t>(i), k) = p[k];
+    }
+    return out;
+  }
+  std::size_t frames() const { return slam_ ? slam_->result().frames.size() : 0; }
+  // Runs to the end (if not there yet) and returns the Result; the session is over.
+  PyResult finish() {
+    if (!slam_) throw DataError("the session is finished");
+    pipeline::ImageSlamResult r;
+    {
+      py::gil_scoped_release nogil;
+      while (slam_->step()) {
+      }
+      r = slam_->finish();
+      slam_.reset();
+    }
+    return to_py(r, ds_.ground_truth);
+  }
+
+ private:
+  io::Dataset ds_;
+  std::unique_ptr<pipeline::ImageSlam> slam_;
+};
+
 PyResult run(const pipeline::ImageSlamOptions& options, const std::optional<std::string>& dataset,
              const std::optional<py::function>& on_frame) {
   options.validate();
@@ -146,15 +221,7 @@ PyResult run(const pipeline::ImageSlamOptions& options, const std::optional<std:
   pipeline::ImageSlamResult result;
   {
     py::gil_scoped_release nogil;
-    if (dataset) {
-      io::DatasetOptions dopt;  // as `rtslam run --dataset`
-      dopt.use_imu = options.robot == "inertial";
-      dopt.cameras = {options.camera};
-      dopt.rate_hz = options.rate_hz;
-      ds = io::open_dataset(*dataset, dopt);
-    } else {
-      ds = pipeline::make_sim_dataset(options);
-    }
+    ds = open_run_dataset(options, dataset);
     result = pipeline::run_image_slam(ds, options, {}, observer);
   }
   return to_py(result, ds.ground_truth);
@@ -247,6 +314,17 @@ PYBIND11_MODULE(rtslam, m) {
   m.def("run", &run, py::arg("options"), py::arg("dataset") = py::none(), py::arg("on_frame") = py::none(),
         "Runs image SLAM on dataset 'KIND:PATH' (or 'PATH'), or on the simulator (options.sim_preset) when None.\n"
         "on_frame(index, t_s, pose) is called after each processed image, pose = [x y z qw qx qy qz] of T_WR.");
+  py::class_<Session>(m, "Session",
+                      "A run stepped from Python: Session(options, dataset=None), then step() until it returns None")
+      .def(py::init<const pipeline::ImageSlamOptions&, const std::optional<std::string>&>(), py::arg("options"),
+           py::arg("dataset") = py::none())
+      .def("step", &Session::step,
+           "Feeds the stream until the filter processed one more image; returns that frame's dict (FrameStats, index,\n"
+           "pose = [x y z qw qx qy qz]; the latest one when a start replays several images) or None at the end.")
+      .def("landmarks", &Session::landmarks, "M×3 positions in W (m) of the current map")
+      .def_property_readonly("frames", &Session::frames, "images processed so far")
+      .def("finish", &Session::finish, "runs to the end and returns the Result (the session is then over)");
+
   m.def("ate", &ate, py::arg("estimate"), py::arg("ground_truth"), py::arg("align") = "se3",
         py::arg("interpolate") = true,
         "ATE (m) of two N×8 trajectories after alignment (se3 | sim3 | posyaw | origin | none), the ground truth\n"

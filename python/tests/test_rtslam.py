@@ -86,6 +86,44 @@ class SimulatedRun(unittest.TestCase):
         np.testing.assert_allclose(last_pose, self.result.trajectory[-1, 1:], atol=1e-12)
 
 
+class SteppedRun(unittest.TestCase):
+    """The same kind of run stepped frame by frame (rtslam.Session): it gives the whole run's result."""
+
+    def test_stepping_gives_the_same_trajectory_as_a_whole_run(self):
+        options = rtslam.load_config(os.path.join(REPO, "config", "sim_mono.yaml"))
+        options.sim_duration_s = 2.0
+        whole = rtslam.run(options)
+        session = rtslam.Session(options)
+        steps = []
+        landmark_counts = []
+        while True:
+            frame = session.step()
+            if frame is None:
+                break
+            steps.append(frame)
+            landmark_counts.append(session.landmarks().shape[0])
+            self.assertEqual(session.frames, len(steps))
+        self.assertIsNone(session.step())  # the end stays the end
+        self.assertEqual(len(steps), whole.trajectory.shape[0])
+        self.assertEqual([f["index"] for f in steps], list(range(len(steps))))
+        np.testing.assert_array_equal(np.array([f["pose"] for f in steps]), whole.trajectory[:, 1:])
+        self.assertEqual([f["landmarks_in_map"] for f in steps], landmark_counts)
+        self.assertEqual(landmark_counts[-1], whole.landmarks.shape[0])
+        result = session.finish()
+        np.testing.assert_array_equal(result.trajectory, whole.trajectory)
+        with self.assertRaises(RuntimeError):
+            session.step()
+
+    def test_finish_runs_the_rest(self):
+        options = rtslam.default_options()
+        options.sim_duration_s = 1.0
+        session = rtslam.Session(options)
+        first = session.step()
+        self.assertEqual(first["index"], 0)
+        result = session.finish()
+        self.assertGreater(result.trajectory.shape[0], 10)
+
+
 class Api(unittest.TestCase):
     def test_ate_of_a_trajectory_against_itself_is_zero(self):
         t = np.arange(20) * 0.1

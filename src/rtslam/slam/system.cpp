@@ -80,6 +80,10 @@ void System::feed(std::unique_ptr<RawData> datum) {
     }
     return;
   }
+  const Sensor* sensor = nullptr;
+  if (slot_of_sensor(datum->sensor_id, &sensor) == nullptr) {
+    throw DataError(fmt::format("datum at t = {} ns names unknown sensor {}", datum->t, datum->sensor_id));
+  }
   if (pending_.empty() && covered(datum->t)) {
     handle(*datum);
     recycle(std::move(datum));

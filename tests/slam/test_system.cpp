@@ -1,0 +1,287 @@
+// The System's frame loop (slam/system.hpp) with stand-in strategies: routing of inputs and sensor data, data held
+// until the IMU covers them, starts through a RobotStarter with replayed data, observers, the health monitor's reset
+// and re-start in the same world frame, max_steps, reuse of fed objects, and the errors of a broken stream.
+#include <gtest/gtest.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/slam/sensor.hpp"
+#include "rtslam/slam/system.hpp"
+
+namespace rtslam::slam {
+namespace {
+
+models::CameraIntrinsics test_camera() {
+  models::CameraIntrinsics c;
+  c.width = 640;
+  c.height = 480;
+  c.fx = c.fy = 400.0;
+  c.cx = 320.0;
+  c.cy = 240.0;
+  return c;
+}
+
+struct Blob final : RawData {
+  int value = 0;
+  bool released = false;
+  void release() override { released = true; }
+};
+
+class CountingDataManager final : public DataManager {
+ public:
+  void process(Map&, Sensor&, const RawData& raw, long frame, FrameStats& stats) override {
+    times.push_back(raw.t);
+    frames.push_back(frame);
+    stats.updated = updated;
+  }
+  std::string name() const override { return "counting"; }
+  std::vector<TimeNs> times;
+  std::vector<long> frames;
+  int updated = 10;
+};
+
+class NoMapManager final : public MapManager {
+ public:
+  bool has_room(const Map&, int) const override { return true; }
+  void manage(Map&, const Sensor&, long, FrameStats&) override {}
+};
+
+// Starts at the `start_at`-th offered datum, replaying the data it held since the first offer (as a
+// visual-inertial start replays its window); the held copies are its own.
+class WindowStarter final : public RobotStarter {
+ public:
+  WindowStarter(int start_at, int state_size, int tangent_size)
+      : start_at_(start_at), x0_(Eigen::VectorXd::Zero(state_size)), P0_(Eigen::MatrixXd::Zero(tangent_size, tangent_size)) {
+    x0_.segment<4>(3) << 1.0, 0.0, 0.0, 0.0;
+  }
+  std::optional<RobotStart> offer(const RawData& datum, const RingBuffer<ImuData>& inputs) override {
+    ++offers;
+    inputs_seen = inputs.size();
+    held_.push_back(std::make_unique<Blob>());
+    held_.back()->t = datum.t;
+    held_.back()->sensor_id = datum.sensor_id;
+    if (static_cast<int>(held_.size()) < start_at_) return std::nullopt;
+    RobotStart s;
+    s.x = x0_;
+    s.P = P0_;
+    s.t = held_.front()->t;
+    s.description = "window start";
+    for (const auto& h : held_) s.replay.push_back(h.get());
+    return s;
+  }
+  void started(Map&, Robot&, bool first) override { first ? ++first_starts : ++restarts_seen; }
+  void restart() override {
+    ++restart_calls;
+    held_.clear();
+  }
+  int offers = 0, first_starts = 0, restarts_seen = 0, restart_calls = 0;
+  std::size_t inputs_seen = 0;
+  Eigen::VectorXd x0_start() const { return x0_; }
+  void set_x0(const Eigen::VectorXd& x) { x0_ = x; }
+
+ private:
+  int start_at_;
+  Eigen::VectorXd x0_;
+  Eigen::MatrixXd P0_;
+  std::vector<std::unique_ptr<Blob>> held_;
+};
+
+struct Recorder final : Observer {
+  void on_step(const StepReport& s) override {
+    indices.push_back(s.index);
+    times.push_back(s.raw.t);
+    health.push_back(s.stats.health);
+    resets += s.stats.reset ? 1 : 0;
+  }
+  void on_start(const Robot&, const RobotStart& s) override { starts.push_back(s.t); }
+  std::vector<long> indices;
+  std::vector<TimeNs> times, starts;
+  std::vector<int> health;
+  int resets = 0;
+};
+
+constexpr TimeNs kMs = 1'000'000;
+
+struct InertialRig {
+  World world;
+  Map* map = nullptr;
+  std::unique_ptr<System> system;
+  CountingDataManager* dm = nullptr;
+  WindowStarter* starter = nullptr;
+  Sensor* camera = nullptr;
+  int imu_id = -1;
+  Recorder recorder;
+  explicit InertialRig(int start_at, SystemOptions so = {}) {
+    map = &world.add_map();
+    system = std::make_unique<System>(world, *map, std::make_unique<NoMapManager>(), so);
+    auto robot = std::make_unique<InertialRobot>(models::InertialParams{});
+    camera = &robot->add_sensor(std::make_unique<PinholeSensor>("cam0", test_camera(), math::Pose{}));
+    auto dm_ptr = std::make_unique<CountingDataManager>();
+    dm = dm_ptr.get();
+    camera->set_data_manager(std::move(dm_ptr));
+    auto st = std::make_unique<WindowStarter>(start_at, 19, 18);
+    st->set_x0([] {
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(19);
+      x.segment<4>(3) << 1.0, 0.0, 0.0, 0.0;
+      x.segment<3>(16) << 0.0, 0.0, -9.81;
+      return x;
+    }());
+    starter = st.get();
+    imu_id = system->add_robot(std::move(robot), std::move(st));
+    system->add_observer(recorder);
+  }
+  void imu(TimeNs t) {
+    auto d = system->spare<ImuData>();
+    d->t = t;
+    d->sensor_id = imu_id;
+    d->m.accel = Eigen::Vector3d(0.0, 0.0, 9.81);
+    system->feed(std::move(d));
+  }
+  void image(TimeNs t) {
+    auto d = system->spare<Blob>();
+    d->t = t;
+    d->sensor_id = camera->id();
+    system->feed(std::move(d));
+  }
+};
+
+TEST(System, SensorsHaveIdsBeforeTheRobotIsInTheMapAndInputsTheirOwn) {
+  InertialRig rig(1);
+  EXPECT_GE(rig.camera->id(), 0);
+  EXPECT_NE(rig.imu_id, rig.camera->id());
+  EXPECT_TRUE(rig.map->robots().empty());  // the starter puts it there
+}
+
+TEST(System, ImagesWaitUntilTheImuCoversThemThenGoThroughTheStarterAndTheFilterInOrder) {
+  InertialRig rig(/*start_at=*/3);
+  for (int k = 0; k <= 10; ++k) rig.imu(k * 5 * kMs);  // IMU up to 50 ms
+  rig.image(40 * kMs);
+  rig.image(60 * kMs);  // not covered yet
+  rig.image(80 * kMs);
+  EXPECT_EQ(rig.starter->offers, 1);
+  EXPECT_EQ(rig.system->pending(), 2u);
+  EXPECT_TRUE(rig.map->robots().empty());
+  for (int k = 11; k <= 16; ++k) rig.imu(k * 5 * kMs);  // to 80 ms: both covered (an input at the image time first)
+  EXPECT_EQ(rig.system->pending(), 0u);
+  EXPECT_EQ(rig.starter->offers, 3);
+  EXPECT_EQ(rig.starter->first_starts, 1);
+  EXPECT_EQ(rig.starter->inputs_seen, 17u);
+  ASSERT_EQ(rig.map->robots().size(), 1u);
+  // The start is at the window's first image; its three images are processed in order.
+  ASSERT_EQ(rig.recorder.starts.size(), 1u);
+  EXPECT_EQ(rig.recorder.starts[0], 40 * kMs);
+  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{40 * kMs, 60 * kMs, 80 * kMs}));
+  EXPECT_EQ(rig.recorder.indices, (std::vector<long>{0, 1, 2}));
+  EXPECT_EQ(rig.system->steps(), 3);
+  EXPECT_EQ(rig.map->robots()[0]->time(), 80 * kMs);
+  // After the start every image goes straight to the filter once covered.
+  rig.imu(85 * kMs);
+  rig.image(85 * kMs);
+  EXPECT_EQ(rig.dm->times.back(), 85 * kMs);
+  EXPECT_EQ(rig.starter->offers, 3);
+}
+
+TEST(System, FedObjectsAreReusedAndReleased) {
+  InertialRig rig(1);
+  rig.imu(0);
+  auto d = rig.system->spare<Blob>();
+  Blob* first = d.get();
+  d->t = 0;
+  d->sensor_id = rig.camera->id();
+  rig.system->feed(std::move(d));
+  EXPECT_TRUE(first->released);
+  auto again = rig.system->spare<Blob>();
+  EXPECT_EQ(again.get(), first);  // the same object: no allocation per datum
+  auto imu = rig.system->spare<ImuData>();
+  EXPECT_NE(imu.get(), nullptr);
+}
+
+TEST(System, BrokenStreamsAreErrors) {
+  {
+    InertialRig rig(1);
+    rig.imu(10 * kMs);
+    EXPECT_THROW(rig.imu(10 * kMs), DataError);  // not after the previous input
+  }
+  {
+    InertialRig rig(1);
+    auto d = rig.system->spare<Blob>();
+    d->sensor_id = 999;
+    EXPECT_THROW(rig.system->feed(std::move(d)), DataError);  // unknown sensor
+  }
+  {
+    SystemOptions so;
+    so.max_pending = 5;
+    InertialRig rig(1, so);
+    for (int k = 0; k < 5; ++k) rig.image(k * kMs);  // no IMU at all: everything waits
+    EXPECT_EQ(rig.system->pending(), 5u);
+    EXPECT_THROW(rig.image(6 * kMs), DataError);
+  }
+}
+
+TEST(System, MaxStepsStopsTheFilter) {
+  SystemOptions so;
+  so.max_steps = 2;
+  InertialRig rig(1, so);
+  for (int k = 0; k <= 20; ++k) rig.imu(k * 5 * kMs);
+  for (int k = 0; k < 5; ++k) rig.image(k * 20 * kMs);
+  EXPECT_EQ(rig.system->steps(), 2);
+  EXPECT_TRUE(rig.system->finished());
+  EXPECT_EQ(rig.dm->times.size(), 2u);
+}
+
+TEST(System, AHealthVerdictResetsTheMapAndRestartsTheRobotAtItsLastHealthyPose) {
+  SystemOptions so;
+  so.health.grace_s = 0.0;
+  so.health.lost_after_s = 0.05;
+  so.health.min_updated = 3;
+  InertialRig rig(1, so);
+  for (int k = 0; k <= 100; ++k) rig.imu(k * 5 * kMs);  // 0.5 s
+  rig.image(0);
+  rig.image(20 * kMs);
+  ASSERT_EQ(rig.map->robots().size(), 1u);
+  const Robot& robot = *rig.map->robots()[0];
+  const Eigen::Vector3d p_healthy = robot.pose().p;
+  rig.dm->updated = 0;  // tracking collapses: no correction any more
+  for (int k = 2; k < 10 && rig.recorder.resets == 0; ++k) rig.image(k * 20 * kMs);
+  ASSERT_EQ(rig.recorder.resets, 1);
+  EXPECT_EQ(rig.starter->restart_calls, 1);
+  EXPECT_EQ(rig.system->counts(0).resets, 1);
+  EXPECT_EQ(rig.system->counts(0).frames_lost, 1);
+  EXPECT_EQ(rig.recorder.health.back(), static_cast<int>(Health::Lost));
+  // The next image goes to the starter again; the restart keeps the world frame (re-anchored at the last healthy
+  // pose, not at the starter's origin).
+  rig.dm->updated = 10;
+  Eigen::VectorXd elsewhere = rig.starter->x0_start();
+  elsewhere.head<3>() << 5.0, 0.0, 0.0;  // where the starter alone would put the robot
+  rig.starter->set_x0(elsewhere);
+  const int offers = rig.starter->offers;
+  rig.image(300 * kMs);
+  EXPECT_EQ(rig.starter->offers, offers + 1);
+  EXPECT_EQ(rig.starter->restarts_seen, 1);
+  EXPECT_EQ(rig.map->robots().size(), 1u);
+  EXPECT_LT((robot.pose().p - p_healthy).norm(), 1e-12);
+}
+
+TEST(System, RobotsWithoutInputsProcessAtOnce) {
+  World world;
+  Map& map = world.add_map();
+  System system(world, map, std::make_unique<NoMapManager>());
+  auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
+  Sensor& cam = robot->add_sensor(std::make_unique<PinholeSensor>("cam0", test_camera(), math::Pose{}));
+  auto dm = std::make_unique<CountingDataManager>();
+  CountingDataManager& counting = *dm;
+  cam.set_data_manager(std::move(dm));
+  const int input = system.add_robot(std::move(robot), std::make_unique<WindowStarter>(1, 13, 12));
+  auto d = system.spare<Blob>();
+  d->t = 5 * kMs;
+  d->sensor_id = cam.id();
+  system.feed(std::move(d));
+  EXPECT_EQ(counting.times, std::vector<TimeNs>{5 * kMs});
+  EXPECT_EQ(system.pending(), 0u);
+  auto imu = system.spare<ImuData>();
+  imu->t = 6 * kMs;
+  imu->sensor_id = input;
+  EXPECT_THROW(system.feed(std::move(imu)), DataError);  // a constant-velocity robot takes no input
+}
+
+}  // namespace
+}  // namespace rtslam::slam

@@ -7,6 +7,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/sim/trajectory.hpp"
+#include "rtslam/sim/world.hpp"
 #include "rtslam/pipeline/builder.hpp"
 #include "rtslam/slam/system.hpp"
 
@@ -62,26 +63,6 @@ void PointDemoOptions::validate() const {
 
 namespace {
 
-// Points spread uniformly over the room's six faces (by area).
-std::vector<Eigen::Vector3d> make_room_points(const PointDemoOptions& o, Rng& rng) {
-  const Eigen::Vector3d lo = o.room_min;
-  const Eigen::Vector3d hi = o.room_max;
-  const Eigen::Vector3d size = hi - lo;
-  const double areas[3] = {size.y() * size.z(), size.x() * size.z(), size.x() * size.y()};  // faces ⟂ x, y, z
-  const double total = 2.0 * (areas[0] + areas[1] + areas[2]);
-  std::vector<Eigen::Vector3d> pts;
-  pts.reserve(static_cast<size_t>(o.n_points));
-  for (int i = 0; i < o.n_points; ++i) {
-    double u = randu(rng, 0.0, total);
-    int axis = 0;
-    while (axis < 2 && u >= 2.0 * areas[axis]) u -= 2.0 * areas[axis++];
-    Eigen::Vector3d p(randu(rng, lo.x(), hi.x()), randu(rng, lo.y(), hi.y()), randu(rng, lo.z(), hi.z()));
-    p[axis] = u < areas[axis] ? lo[axis] : hi[axis];
-    pts.push_back(p);
-  }
-  return pts;
-}
-
 StampedPose stamped(TimeNs t, const math::Pose& T_WR) {
   StampedPose s;
   s.t = t;
@@ -131,7 +112,7 @@ struct DemoCollector final : slam::Observer {
 PointDemoResult run_point_demo(const PointDemoOptions& o, const std::function<void(int, int)>& on_frame) {
   o.validate();
   Rng rng(o.seed);
-  const std::vector<Eigen::Vector3d> points = make_room_points(o, rng);
+  const std::vector<Eigen::Vector3d> points = sim::points_on_box_faces(o.room_min, o.room_max, o.n_points, rng);
   const Eigen::Vector3d centre = 0.5 * (o.room_min + o.room_max);
   const auto trajectory = sim::make_handheld(o.seed, centre, o.duration_s);
   const models::CameraIntrinsics intr = euroc_cam0_intrinsics();

@@ -507,4 +507,22 @@ void World::generate_textures() {
   logger("sim")->debug("world: {} faces, {:.1f} Mtexels", faces_.size(), static_cast<double>(total) * 1e-6);
 }
 
+std::vector<Eigen::Vector3d> points_on_box_faces(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int n,
+                                                 std::mt19937_64& rng) {
+  const Eigen::Vector3d size = hi - lo;
+  const double areas[3] = {size.y() * size.z(), size.x() * size.z(), size.x() * size.y()};  // faces ⟂ x, y, z
+  const double total = 2.0 * (areas[0] + areas[1] + areas[2]);
+  std::vector<Eigen::Vector3d> pts;
+  pts.reserve(static_cast<size_t>(std::max(n, 0)));
+  for (int i = 0; i < n; ++i) {
+    double u = randu(rng, 0.0, total);
+    int axis = 0;
+    while (axis < 2 && u >= 2.0 * areas[axis]) u -= 2.0 * areas[axis++];
+    Eigen::Vector3d p(randu(rng, lo.x(), hi.x()), randu(rng, lo.y(), hi.y()), randu(rng, lo.z(), hi.z()));
+    p[axis] = u < areas[axis] ? lo[axis] : hi[axis];
+    pts.push_back(p);
+  }
+  return pts;
+}
+
 }  // namespace rtslam::sim

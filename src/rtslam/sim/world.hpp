@@ -21,6 +21,7 @@
 //   pillars: [{center: [x, y], size: [sx, sy]}]     # floor to ceiling
 //   random_boxes: 0           # extra boxes placed at random (seeded), away from the room centre
 #include <cstdint>
+#include <random>
 #include <span>
 #include <string>
 #include <vector>
@@ -159,5 +160,10 @@ class World {
   std::vector<Marker> markers_;
   float inv_texel_ = 200.0f;
 };
+
+/// `n` points spread uniformly over the six faces of the box [lo, hi] (by area): the known-point world of the
+/// points demo (pipeline/point_demo.hpp), drawn from `rng`.
+std::vector<Eigen::Vector3d> points_on_box_faces(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int n,
+                                                 std::mt19937_64& rng);
 
 }  // namespace rtslam::sim

@@ -91,6 +91,34 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   return o;
 }
 
+YAML::Node ActiveSearchOptions::to_yaml() const {
+  YAML::Node s;
+  s["sigma_px"] = sigma_px;
+  s["second_order_depth"] = second_order_depth;
+  s["n_sigma"] = n_sigma;
+  s["max_updates"] = max_updates;
+  s["max_updates_ransac"] = max_updates_ransac;
+  s["ransac_ntries"] = ransac_ntries;
+  s["ransac_low_innov_px"] = ransac_low_innov_px;
+  s["gain_recomputations"] = gain_recomputations;
+  s["iterations"] = iterations;
+  s["iteration_tolerance"] = iteration_tolerance;
+  s["max_inits"] = max_inits;
+  s["max_search_size_px2"] = max_search_size_px2;
+  s["margin_px"] = margin_px;
+  s["init_patch_size"] = init_patch_size;
+  s["d_min"] = prior.d_min;
+  s["depth_prior"] = depth_prior;
+  s["depth_prior_sigma_ratio"] = prior.sigma_ratio;
+  s["scene_prior_min_points"] = scene_prior_min_points;
+  s["grid"]["cells_x"] = grid.cells_x;
+  s["grid"]["cells_y"] = grid.cells_y;
+  s["grid"]["margin_px"] = grid.margin_px;
+  s["harris"] = harris.to_yaml();
+  s["zncc"] = zncc.to_yaml();
+  return s;
+}
+
 namespace {
 vision::ZnccOptions exhaustive(vision::ZnccOptions o) {
   o.two_level = false;

@@ -88,6 +88,8 @@ struct ActiveSearchOptions {
   /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min,
   /// grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors; validates.
   static ActiveSearchOptions from_yaml(YamlMap& map);
+  /// The keys of from_yaml with their values (the effective configuration).
+  YAML::Node to_yaml() const;
 };
 
 class ActiveSearchDataManager final : public slam::DataManager {

@@ -78,6 +78,19 @@ HarrisOptions HarrisOptions::from_yaml(YamlMap& map) {
   return o;
 }
 
+YAML::Node HarrisOptions::to_yaml() const {
+  YAML::Node n;
+  n["window_size"] = window_size;
+  n["k"] = k;
+  n["response"] = response == HarrisResponse::harris ? "harris" : "min_eigen";
+  n["harris_threshold"] = harris_threshold;
+  n["min_eigen_threshold"] = min_eigen_threshold;
+  n["edge_ratio"] = edge_ratio;
+  n["border_px"] = border_px;
+  n["subpixel"] = subpixel == HarrisSubpixel::quadratic ? "quadratic" : "edge_lines";
+  return n;
+}
+
 HarrisDetector::HarrisDetector(HarrisOptions options) : options_(options) { options_.validate(); }
 
 double HarrisDetector::response(double a, double b, double c) const {

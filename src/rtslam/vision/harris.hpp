@@ -45,6 +45,8 @@ struct HarrisOptions {
   /// Reads keys window_size, k, response ("harris" | "min_eigen"), harris_threshold, min_eigen_threshold,
   /// edge_ratio, border_px, subpixel ("quadratic" | "edge_lines"); unknown keys are errors (map.finish()); validates.
   static HarrisOptions from_yaml(YamlMap& map);
+  /// The keys of from_yaml with their values.
+  YAML::Node to_yaml() const;
 };
 
 struct Corner {

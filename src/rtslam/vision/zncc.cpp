@@ -163,6 +163,19 @@ ZnccOptions ZnccOptions::from_yaml(YamlMap& map) {
   return o;
 }
 
+YAML::Node ZnccOptions::to_yaml() const {
+  YAML::Node n;
+  n["threshold"] = threshold;
+  n["patch_size"] = patch_size;
+  n["two_level"] = two_level;
+  n["partial_correlation"] = partial_correlation;
+  n["coarse_margin"] = coarse_margin;
+  n["coarse_candidates_spread"] = coarse_candidates_spread;
+  n["climb_radius"] = climb_radius;
+  n["partial_step_rows"] = partial_step_rows;
+  return n;
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Matcher
 

@@ -129,6 +129,8 @@ struct ZnccOptions {
   /// Keys: threshold, patch_size, two_level, partial_correlation, coarse_margin, coarse_candidates_spread,
   /// climb_radius, partial_step_rows.
   static ZnccOptions from_yaml(YamlMap& map);
+  /// The keys of from_yaml with their values.
+  YAML::Node to_yaml() const;
 };
 
 struct MatchResult {

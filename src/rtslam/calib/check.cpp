@@ -267,8 +267,8 @@ std::vector<std::string> CheckResult::lines() const {
                               "(rate correlation {:.2f}, next peak {:.2f})",
                               t_d_measured_ms, t_d_configured_ms, correlation, second_peak_correlation));
   } else {
-    out.push_back(fmt::format("  time offset t_d: not measured (rate correlation {:.2f}), configured {:.1f} ms",
-                              correlation, t_d_configured_ms));
+    out.push_back(fmt::format("  time offset t_d: not measured (rate correlation {:.2f}, next peak {:.2f}), configured "
+                              "{:.1f} ms", correlation, second_peak_correlation, t_d_configured_ms));
   }
   out.push_back("  input: " + stream.line());
   for (const auto& w : warnings) out.push_back("  WARNING: " + w);
@@ -490,6 +490,15 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
     res.rotation_to_inverse_deg = angle_between_deg(he.R_RS, res.R_RS_configured.transpose());
     res.looks_inverted = res.rotation_error_deg > o.max_rotation_deg && res.rotation_to_inverse_deg <= o.max_rotation_deg;
   }
+  // Without the rotation to confirm them the magnitudes alone decide nothing: with little rotation the camera's
+  // rates carry the parallax of the translation, whose phase differs from the rotation's (a peak 22 ms off on rendered
+  // handheld motion). Their peak is kept as information (t_d_measured_ms), never warned about.
+  bool offset_magnitudes_only = false;
+  if (!res.rotation_measured && res.offset_measured) {
+    res.offset_measured = false;
+    offset_magnitudes_only = true;
+    res.t_d_measured_ms = t_d * 1e3;
+  }
   if (res.offset_measured) {
     res.t_d_measured_ms = t_d * 1e3;
     res.offset_error_ms = res.t_d_measured_ms - res.t_d_configured_ms;
@@ -519,7 +528,13 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
     why = fmt::format("not enough rotation about two axes for the camera–IMU rotation ({:.2f} rad/s, need {:g})",
                       res.excitation_rad_s, o.min_excitation);
   }
-  if (!res.offset_measured) {
+  if (offset_magnitudes_only) {
+    why += fmt::format("; the time offset needs the rotation (the rate magnitudes alone peak at {:.1f} ms)",
+                       res.t_d_measured_ms);
+  } else if (!res.offset_measured && correlated) {
+    why += fmt::format("{}the rate magnitudes peak ambiguously for the time offset (correlation {:.2f}, another peak "
+                       "{:.2f})", why.empty() ? "" : "; ", res.correlation, res.second_peak_correlation);
+  } else if (!res.offset_measured) {
     why += fmt::format("{}the camera and gyro rates do not correlate enough for the time offset ({:.2f}, need {:g})",
                        why.empty() ? "" : "; ", res.correlation, o.min_correlation);
   }

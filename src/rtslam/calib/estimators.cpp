@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include <Eigen/Eigenvalues>
@@ -124,20 +125,23 @@ RelativeRotation estimate_relative_rotation(const std::vector<Vector3d>& b0_in, 
 
   // 2. The epipolar model x0ᵀ [t]× R x1 = 0 over every pair with z > 0, robust Levenberg-Marquardt on the Sampson
   // error (numeric Jacobians: 5 parameters), the translation direction started at the least-squares null vector.
-  std::vector<Vector3d> x0, x1;
+  // Active set: the rotation model's (loose) inliers first, then the epipolar model's own.
+  std::vector<Vector3d> all0, all1, x0, x1;
   for (std::size_t k = 0; k < n; ++k) {
     if (b0[k].z() > 0.05 && b1[k].z() > 0.05) {
-      x0.push_back(b0[k] / b0[k].z());
-      x1.push_back(b1[k] / b1[k].z());
+      all0.push_back(b0[k] / b0[k].z());
+      all1.push_back(b1[k] / b1[k].z());
+      if (b0[k].dot(R * b1[k]) >= cos_th) {
+        x0.push_back(all0.back());
+        x1.push_back(all1.back());
+      }
     }
   }
-  const std::size_t m = x0.size();
-  if (static_cast<int>(m) < o.min_inliers) return res;
+  if (static_cast<int>(x0.size()) < o.min_inliers) return res;
   Vector3d t;
   {
     Matrix3d A = Matrix3d::Zero();
-    for (std::size_t k = 0; k < m; ++k) {
-      if (b0[k].dot(R * b1[k]) < cos_th) continue;
+    for (std::size_t k = 0; k < x0.size(); ++k) {
       const Vector3d a = (R * x1[k]).cross(x0[k]);
       A += a * a.transpose();
     }
@@ -146,8 +150,8 @@ RelativeRotation estimate_relative_rotation(const std::vector<Vector3d>& b0_in, 
   }
   const auto residuals = [&](const Matrix3d& Rx, const Vector3d& tx, Eigen::VectorXd& r) {
     const Matrix3d E = math::skew(tx) * Rx;
-    r.resize(static_cast<Eigen::Index>(m));
-    for (std::size_t k = 0; k < m; ++k) r[static_cast<Eigen::Index>(k)] = sampson(E, x0[k], x1[k]);
+    r.resize(static_cast<Eigen::Index>(x0.size()));
+    for (std::size_t k = 0; k < x0.size(); ++k) r[static_cast<Eigen::Index>(k)] = sampson(E, x0[k], x1[k]);
   };
   const double huber = o.sampson_threshold;
   const auto robust_cost = [&](const Eigen::VectorXd& r, Eigen::VectorXd* w) {
@@ -173,7 +177,7 @@ RelativeRotation estimate_relative_rotation(const std::vector<Vector3d>& b0_in, 
     residuals(Rf, tf, r);
     double cost = robust_cost(r, &w);
     double lambda = 1e-3;
-    Eigen::MatrixXd J(static_cast<Eigen::Index>(m), 5);
+    Eigen::MatrixXd J(static_cast<Eigen::Index>(x0.size()), 5);
     for (int it = 0; it < 30; ++it) {
       const Eigen::Matrix<double, 3, 2> B = tangent_basis(tf);
       const double h = 1e-7;
@@ -221,6 +225,20 @@ RelativeRotation estimate_relative_rotation(const std::vector<Vector3d>& b0_in, 
                              Vector3d(1, 1, -1).normalized()}) {
     Fit f = refine(res.R_01, t0);
     if (f.cost < best.cost) best = std::move(f);
+  }
+  // The epipolar model's inliers among every pair (a rotation-model outlier may be a near point), refined once more.
+  for (const double factor : {3.0, 2.0, 1.5}) {
+    const Matrix3d E = math::skew(best.t) * best.R;
+    x0.clear();
+    x1.clear();
+    for (std::size_t k = 0; k < all0.size(); ++k) {
+      if (std::abs(sampson(E, all0[k], all1[k])) <= factor * o.sampson_threshold) {
+        x0.push_back(all0[k]);
+        x1.push_back(all1[k]);
+      }
+    }
+    if (static_cast<int>(x0.size()) < o.min_inliers) return res;
+    best = refine(best.R, best.t);
   }
   R = best.R;
   t = best.t;
@@ -326,37 +344,70 @@ TimeOffsetResult estimate_time_offset(const std::vector<VisualInterval>& visual,
   }
   res.intervals = static_cast<int>(used.size());
   if (used.size() < 10) return res;
-  std::vector<double> corr(static_cast<std::size_t>(2 * steps + 1), -2.0);
-  std::vector<double> gyr(used.size());
+  // The gyro's rate magnitudes at every candidate offset (intervals the IMU does not cover are NaN).
+  const std::size_t nc = static_cast<std::size_t>(2 * steps + 1);
+  std::vector<std::vector<double>> gyr(nc, std::vector<double>(used.size(), std::nan("")));
   for (int s = -steps; s <= steps; ++s) {
     const TimeNs d = from_seconds(centre_s + s * step_s);
+    for (std::size_t i = 0; i < used.size(); ++i) {
+      if (const auto th = integrate_gyro(imu, used[i]->t0 + d, used[i]->t1 + d, bias)) {
+        gyr[static_cast<std::size_t>(s + steps)][i] = th->norm() / to_seconds(used[i]->t1 - used[i]->t0);
+      }
+    }
+  }
+  // Per candidate: the (winsorized) Pearson correlation, the quality figure; and the differences |ω_C| − |ω_R| less
+  // their median (a gyro bias shifts the magnitudes), whose robust (Cauchy) cost locates the offset — a few wild
+  // intervals (tracking failures) would decide a correlation.
+  std::vector<double> corr(nc, -2.0), cost(nc, std::numeric_limits<double>::infinity());
+  std::vector<std::vector<double>> resid(nc);
+  for (std::size_t c = 0; c < nc; ++c) {
     std::vector<double> x, y;
     for (std::size_t i = 0; i < used.size(); ++i) {
-      const auto th = integrate_gyro(imu, used[i]->t0 + d, used[i]->t1 + d, bias);
-      if (!th) continue;
+      if (std::isnan(gyr[c][i])) continue;
       x.push_back(vis[i]);
-      y.push_back(th->norm() / to_seconds(used[i]->t1 - used[i]->t0));
+      y.push_back(gyr[c][i]);
     }
     if (x.size() < 10) continue;
+    std::vector<double> d(x.size());
+    for (std::size_t i = 0; i < x.size(); ++i) d[i] = x[i] - y[i];
+    const double med = median_of(d);
+    for (double& v : d) v -= med;
+    resid[c] = std::move(d);
     winsorize(x);
     winsorize(y);
-    corr[static_cast<std::size_t>(s + steps)] = pearson(x, y);
+    corr[c] = pearson(x, y);
   }
-  const auto best = std::max_element(corr.begin(), corr.end());
-  const int ib = static_cast<int>(best - corr.begin());
-  if (*best <= -1.5) return res;
+  const auto best_corr = std::max_element(corr.begin(), corr.end());
+  if (*best_corr <= -1.5) return res;
+  double scale = 0.0;
+  {
+    std::vector<double> a;
+    for (double v : resid[static_cast<std::size_t>(best_corr - corr.begin())]) a.push_back(std::abs(v));
+    scale = std::max(1.4826 * median_of(a), 0.005);
+  }
+  for (std::size_t c = 0; c < nc; ++c) {
+    if (resid[c].empty()) continue;
+    double sum = 0.0;
+    for (double v : resid[c]) sum += std::log1p((v / scale) * (v / scale));
+    cost[c] = sum / static_cast<double>(resid[c].size());
+  }
+  const auto best = std::min_element(cost.begin(), cost.end());
+  const int ib = static_cast<int>(best - cost.begin());
   double frac = 0.0;
-  if (ib > 0 && ib + 1 < static_cast<int>(corr.size())) {
-    frac = parabola_vertex(corr[static_cast<std::size_t>(ib - 1)], *best, corr[static_cast<std::size_t>(ib + 1)]);
+  if (ib > 0 && ib + 1 < static_cast<int>(nc) && std::isfinite(cost[static_cast<std::size_t>(ib - 1)]) &&
+      std::isfinite(cost[static_cast<std::size_t>(ib + 1)])) {
+    frac = parabola_vertex(cost[static_cast<std::size_t>(ib - 1)], *best, cost[static_cast<std::size_t>(ib + 1)]);
   }
   res.t_d_s = centre_s + (ib - steps + frac) * step_s;
-  res.correlation = *best;
-  // The best correlation of another local maximum at least 4 steps away (an ambiguity figure).
+  res.correlation = corr[static_cast<std::size_t>(ib)];
+  // The correlation at the best other local minimum of the cost at least 4 steps away (an ambiguity figure).
   res.second_best = -1.0;
-  for (int i = 1; i + 1 < static_cast<int>(corr.size()); ++i) {
+  double second_cost = std::numeric_limits<double>::infinity();
+  for (int i = 1; i + 1 < static_cast<int>(nc); ++i) {
     const std::size_t u = static_cast<std::size_t>(i);
-    if (std::abs(i - ib) >= 4 && corr[u] >= corr[u - 1] && corr[u] >= corr[u + 1]) {
-      res.second_best = std::max(res.second_best, corr[u]);
+    if (std::abs(i - ib) >= 4 && cost[u] <= cost[u - 1] && cost[u] <= cost[u + 1] && cost[u] < second_cost) {
+      second_cost = cost[u];
+      res.second_best = corr[u];
     }
   }
   res.ok = true;

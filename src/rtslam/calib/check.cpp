@@ -260,7 +260,8 @@ std::vector<std::string> CheckResult::lines() const {
                               rotation_error_deg, rotation_std_deg, rotation_to_inverse_deg, excitation_rad_s,
                               rate_rms_rad_s));
   } else {
-    out.push_back(fmt::format("  camera–IMU rotation: not measured (excitation {:.2f} rad/s)", excitation_rad_s));
+    out.push_back(fmt::format("  camera–IMU rotation: not measured (excitation {:.2f} rad/s, std {:.1f} deg)",
+                              excitation_rad_s, rotation_std_deg));
   }
   if (offset_measured) {
     out.push_back(fmt::format("  time offset t_d (t_imu = t_cam + t_d): measured {:.1f} ms, configured {:.1f} ms "
@@ -480,8 +481,10 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
     }
   }
   res.excitation_rad_s = he.excitation_rad_s;
-  res.rotation_measured = he.ok;
-  if (he.ok) {
+  // Measured when the fit can decide at the tolerance: its std well below it.
+  res.rotation_measured = he.ok && he.rotation_std_deg <= o.max_rotation_deg / 3.0;
+  res.rotation_std_deg = he.rotation_std_deg;
+  if (res.rotation_measured) {
     res.R_RS_measured = he.R_RS;
     res.rotation_std_deg = he.rotation_std_deg;
     res.rate_rms_rad_s = he.rms_rad_s;
@@ -525,8 +528,9 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
   }
   std::string why;
   if (!res.rotation_measured) {
-    why = fmt::format("not enough rotation about two axes for the camera–IMU rotation ({:.2f} rad/s, need {:g})",
-                      res.excitation_rad_s, o.min_excitation);
+    why = fmt::format("not enough rotation about two axes for the camera–IMU rotation ({:.2f} rad/s, need {:g}; "
+                      "std {:.1f} deg, need <= {:.1f})",
+                      res.excitation_rad_s, o.min_excitation, res.rotation_std_deg, o.max_rotation_deg / 3.0);
   }
   if (offset_magnitudes_only) {
     why += fmt::format("; the time offset needs the rotation (the rate magnitudes alone peak at {:.1f} ms)",

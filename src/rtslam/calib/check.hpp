@@ -42,7 +42,8 @@ struct CheckOptions {
   double max_rotation_deg = 3.0;    // warn above this rotation error, in (0, 180]
   double max_offset_ms = 5.0;       // warn above this offset error, in (0, 1000]
   double offset_range_ms = 100.0;   // searched around the configured t_d, in [10, 1000]
-  double min_excitation = 0.1;      // rad/s: camera-rate spread needed about two axes, in [0, 10]
+  double min_excitation = 0.04;     // rad/s: camera-rate spread needed about two axes, in [0, 10]; the rotation is
+                                    // also refused when its std exceeds max_rotation_deg / 3
   double min_correlation = 0.6;     // rate-magnitude correlation needed for an offset, in [0, 1]
   int cells_x = 10, cells_y = 8;    // feature grid, in [2, 64]
   int patch_size = 15;              // ZNCC template (odd), in [5, 31]

@@ -391,6 +391,10 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
   if (!onset_t) {
     return finish(Verdict::not_enough_motion, fmt::format("no motion within the first {:g} s", o.max_wait_s));
   }
+  if (!window_start) {
+    return finish(Verdict::not_enough_motion,
+                  fmt::format("no image after the motion onset at {:.1f} s", to_seconds(*onset_t - *t_first)));
+  }
   if (frames.size() < 20) return finish(Verdict::failed, fmt::format("{} images in the window", frames.size()));
 
   // 2. Camera rotation per image interval.

@@ -28,6 +28,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "calibration_prepass.hpp"
 #include "commands.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/eval/metrics.hpp"
@@ -410,6 +411,12 @@ void run_dataset(const RunOptions& ro) {
   if (simulated && (ro.start_at_s > 0.0 || ro.stop_after_s > 0.0)) {
     ds.source = std::make_unique<io::WindowSource>(std::move(ds.source), ro.start_at_s, ro.stop_after_s);
   }
+  // Calibration check (inertial runs): a pre-pass over the dataset opened again; the run's stream timing recorded.
+  std::string calibration_skipped;
+  const auto calibration = calibration_prepass(ro.dataset, dopt, o, simulated, calibration_skipped);
+  auto stream_monitor = std::make_unique<calib::StreamMonitor>(std::move(ds.source));
+  const calib::StreamMonitor& run_stream = *stream_monitor;
+  ds.source = std::move(stream_monitor);
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
   displays.attach(ds, o.seed);
 
@@ -430,7 +437,7 @@ void run_dataset(const RunOptions& ro) {
   pipeline::ImageSlamResult result;
   bool interrupted = false;
   nlohmann::json summary;
-  std::string accuracy_line, display_line;
+  std::string accuracy_line, display_line, calibration_line;
   std::vector<double> times;
   io::Percentiles timing;
   nlohmann::json stages;
@@ -527,6 +534,7 @@ void run_dataset(const RunOptions& ro) {
     }
     summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
     summary["input"] = ds.source->stats().to_json();
+    calibration_line = calibration_summary(calibration, calibration_skipped, run_stream.report(), summary);
     summary["seed"] = o.seed;
     summary["frames"] = result.frames.size();
     summary["landmarks"] = {{"final", result.landmarks_final},
@@ -601,7 +609,7 @@ void run_dataset(const RunOptions& ro) {
       "  landmarks: {} in map at the end ({} Euclidean), {} created; matched per frame: min {} ({} after 1 s)\n"
       "  per-frame time: median {:.3f} ms, p90 {:.3f} ms, max {:.3f} ms (stage medians: predict {:.3f}, match "
       "{:.3f}, ransac {:.3f}, update {:.3f}, init {:.3f}, map {:.3f})\n"
-      "{}{}{}  outputs in {}/\n",
+      "{}{}{}{}  outputs in {}/\n",
       ds.name, ds.kind, o.seed, result.frames.size(), result.landmarks_final, result.euclidean_final,
       result.landmarks_created, result.frames.empty() ? 0 : min_matched,
       min_matched_after_1s == std::numeric_limits<int>::max() ? 0 : min_matched_after_1s, timing.median, timing.p90,
@@ -616,7 +624,7 @@ void run_dataset(const RunOptions& ro) {
                         result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
                         result.imu_accel_saturated, result.images_before_start)
           : std::string()),
-      display_line, ro.out);
+      calibration_line, display_line, ro.out);
   std::cout << std::flush;
   if (const int sig = RunSignals::received()) {
     std::cerr << fmt::format(

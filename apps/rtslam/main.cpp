@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   rtslam::cli::register_bench(app);
   rtslam::cli::register_imu_noise(app);
   rtslam::cli::register_view(app);
+  rtslam::cli::register_check_calibration(app);
 
   try {
     app.parse(argc, argv);

@@ -40,6 +40,7 @@ void InertialOptions::validate() const {
     if (v) require_bound(*v > 0.0 && *v < 10.0, w, key, *v, "in (0, 10)");
   }
   vi_init.validate();
+  calibration_check.validate();
   if (time_offset_s) require_bound(std::abs(*time_offset_s) < 1.0, w, "time_offset", *time_offset_s, "within ±1 s");
   if (gyro_saturation) require_bound(*gyro_saturation > 0.0, w, "gyro_saturation", *gyro_saturation, "> 0 rad/s");
   if (accel_saturation) require_bound(*accel_saturation > 0.0, w, "accel_saturation", *accel_saturation, "> 0 m/s²");
@@ -141,6 +142,10 @@ void read_inertial(YamlMap m, InertialOptions& o) {
   m.get("extrinsics_std_m", o.extrinsics_std_m);
   m.get("extrinsics_std_deg", o.extrinsics_std_deg);
   if (m.has("vi_init")) read_vi_init(m.child("vi_init"), o.vi_init);
+  if (m.has("calibration_check")) {
+    YamlMap c = m.child("calibration_check");
+    o.calibration_check = calib::CheckOptions::from_yaml(c);
+  }
   o.vi_init.accel_bias_std = o.accel_bias_std;  // the refinement's prior is the filter's
   double v = 0.0;
   if (m.has("time_offset")) { m.get("time_offset", v); o.time_offset_s = v; }
@@ -173,6 +178,7 @@ YAML::Node inertial_to_yaml(const InertialOptions& o) {
   n["extrinsics_std_m"] = o.extrinsics_std_m;
   n["extrinsics_std_deg"] = o.extrinsics_std_deg;
   n["vi_init"] = vi_init_to_yaml(o.vi_init);
+  n["calibration_check"] = o.calibration_check.to_yaml();
   if (o.time_offset_s) n["time_offset"] = *o.time_offset_s;
   if (o.accelerometer_noise_density) n["accelerometer_noise_density"] = *o.accelerometer_noise_density;
   if (o.gyroscope_noise_density) n["gyroscope_noise_density"] = *o.gyroscope_noise_density;

@@ -23,6 +23,7 @@
 #include <Eigen/Core>
 #include <yaml-cpp/yaml.h>
 
+#include "rtslam/calib/check.hpp"
 #include "rtslam/core/time.hpp"
 #include "rtslam/core/trajectory.hpp"
 #include "rtslam/core/yaml.hpp"
@@ -87,6 +88,7 @@ struct InertialOptions {
   double extrinsics_std_m = 0.02;         //   position std (m, per axis) ...
   double extrinsics_std_deg = 1.0;        //   ... and rotation std (deg, per axis)
   ViInitOptions vi_init;                  // the visual-inertial start (vi_init.hpp); disabled: IMU-only start
+  calib::CheckOptions calibration_check;  // `rtslam run`'s check of T_RS and t_d against the data (calib/check.hpp)
   void validate() const;
 };
 

@@ -1,14 +1,22 @@
 #pragma once
 // Map-manager policies (RT-SLAM): the map size limit, AHP→Euclidean reparametrization by the linearity index,
 // and landmark removal:
-//  - Global: keep landmarks; remove those whose search/match record is poor (match ratio below a bound after
-//    enough searches) — a landmark that left the view stays for when it comes back (loops close);
-//  - VisualOdometry: also forget landmarks not observed for `forget_after_frames` frames.
-// Both make room when the map is full (`evict_when_full`): a full map would stop feature initialization and leave
-// the camera blind once it turns away from the mapped part of the scene, so the landmarks out of view the longest
-// (not visible for at least `evict_min_unseen_frames`) are dropped until `evict_rows` rows are free again.
+//  - Global: keep landmarks; remove those whose search/match record is poor (after `min_searches_to_judge`
+//    searches: matched/searched below `min_match_ratio`, or updated/matched below `min_inlier_ratio`) — a landmark
+//    that left the view stays for when it comes back (loops close), unless `forget_unseen_after_frames` is set;
+//  - VisualOdometry: also forget landmarks not updated (used in a correction) for more than `forget_after_frames`
+//    frames: those out of view, and those in view that are no longer matched.
+// `forget_unseen_after_frames` (> 0) applies to both policies: landmarks not visible for more than that many frames
+// are dropped (for VisualOdometry it only matters when below `forget_after_frames`).
+// An AHP landmark that has been used in at least one update becomes Euclidean when its linearity index, seen from
+// the sensor, is below `reparam_threshold` (before its first update its covariance is the prior's).
+// Both policies make room in a nearly full map (`evict_when_full`): a full map would stop feature initialization and
+// leave the camera blind once it turns away from the mapped part of the scene, so when fewer than `evict_rows` rows
+// are free, the landmarks out of view the longest (not visible for at least `evict_min_unseen_frames`; ties: the
+// lower id) are dropped until `evict_rows` rows are free again, or no such landmark is left.
 // The map size counts covariance rows ("state entries", as RT-SLAM's MAP_SIZE): an AHP point takes 7, a
-// Euclidean point 3, the robot its own.
+// Euclidean point 3, the robot its own. The counters judged are those of the sensor `manage` is called for (one
+// camera per map in the pipelines).
 #include <memory>
 
 #include <spdlog/logger.h>
@@ -27,8 +35,8 @@ struct MapPolicyOptions {
   double min_match_ratio = 0.5;       // matched / searched below this: remove (Global and VO)
   double min_inlier_ratio = 0.5;      // updated / matched below this: remove (inconsistent)
   long forget_after_frames = 60;      // VO: frames without an update before a landmark is dropped
-  long forget_unseen_after_frames = 0;  // Global: drop landmarks not visible for this long (0: never)
-  bool evict_when_full = true;        // make room in a full map by dropping the longest-unseen landmarks ...
+  long forget_unseen_after_frames = 0;  // any policy: drop landmarks not visible for this long (0: never)
+  bool evict_when_full = true;        // make room in a nearly full map by dropping the longest-unseen landmarks ...
   long evict_min_unseen_frames = 20;  // ... that have not been visible for at least this many frames ...
   int evict_rows = 70;                // ... until this many rows are free (70: 10 AHP points, RT-SLAM N_INIT)
   void validate() const;

@@ -23,7 +23,7 @@ rtslam::io::Dataset open(const std::string& dataset, const rtslam::pipeline::Ima
   if (dataset.empty()) return rtslam::pipeline::make_sim_dataset(options);
   rtslam::io::DatasetOptions dataset_options;
   dataset_options.use_imu = options.robot == "inertial";
-  dataset_options.cameras = {options.camera};
+  dataset_options.cameras = options.camera_indices();
   return rtslam::io::open_dataset(dataset, dataset_options);
 }
 
@@ -55,7 +55,7 @@ int run(int argc, char** argv) {
   options.validate();
 
   rtslam::io::Dataset data = open(dataset, options);
-  options.camera = 0;  // the dataset's Rig holds the selected camera only
+  if (!dataset.empty()) options = options.on_selected_cameras();  // the dataset's Rig holds those cameras only
   fmt::print("dataset: {} ({}), robot: {}\n", data.name, data.kind, options.robot);
 
   const rtslam::pipeline::ImageSlamResult result = rtslam::pipeline::run_image_slam(data, options);

@@ -135,7 +135,7 @@ io::Dataset open_run_dataset(const pipeline::ImageSlamOptions& options, const st
   if (!dataset) return pipeline::make_sim_dataset(options);
   io::DatasetOptions dopt;
   dopt.use_imu = options.robot == "inertial";
-  dopt.cameras = {options.camera};
+  dopt.cameras = options.camera_indices();
   dopt.rate_hz = options.rate_hz;
   return io::open_dataset(*dataset, dopt);
 }
@@ -154,7 +154,7 @@ class Session {
     py::gil_scoped_release nogil;
     ds_ = open_run_dataset(options, dataset);
     if (!ds_.source) throw ConfigError("dataset '" + ds_.name + "' has no measurement source");
-    slam_ = std::make_unique<pipeline::ImageSlam>(*ds_.source, ds_.rig, ds_.name, options);
+    slam_ = std::make_unique<pipeline::ImageSlam>(*ds_.source, ds_.rig, ds_.name, dataset ? options.on_selected_cameras() : options);
   }
   // The next processed image as a dict (frame statistics + index + pose), or None at the end of the run.
   py::object step() {
@@ -222,7 +222,7 @@ PyResult run(const pipeline::ImageSlamOptions& options, const std::optional<std:
   {
     py::gil_scoped_release nogil;
     ds = open_run_dataset(options, dataset);
-    result = pipeline::run_image_slam(ds, options, {}, observer);
+    result = pipeline::run_image_slam(ds, dataset ? options.on_selected_cameras() : options, {}, observer);
   }
   return to_py(result, ds.ground_truth);
 }

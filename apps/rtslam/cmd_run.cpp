@@ -403,7 +403,7 @@ void run_dataset(const RunOptions& ro) {
   RunDisplays displays(ro, o);  // before the input: a port in use or a bad path fails at once
   io::DatasetOptions dopt;
   dopt.use_imu = o.robot == "inertial";
-  dopt.cameras = {o.camera};
+  dopt.cameras = o.camera_indices();
   dopt.rate_hz = ro.rate_hz ? *ro.rate_hz : o.rate_hz;
   dopt.start_offset_s = ro.start_at_s;
   dopt.duration_s = ro.stop_after_s;
@@ -422,8 +422,8 @@ void run_dataset(const RunOptions& ro) {
 
   const auto total = ds.source->image_count();
   io::ProgressLine progress(total ? *total : 0, nullptr, ro.quiet ? std::optional<bool>(false) : std::nullopt);
-  pipeline::ImageSlamOptions run_o = o;
-  run_o.camera = 0;  // the Rig holds the selected camera only
+  // A dataset's Rig holds the selected cameras only (the simulator's holds all of its own).
+  pipeline::ImageSlamOptions run_o = simulated ? o : o.on_selected_cameras();
   // trajectory.csv and frames.csv stream into their .tmp during the run (flushed every second: a killed run leaves
   // the rows so far there) and are renamed at its end.
   io::TrajectoryCsvWriter trajectory_csv(ro.out + "/trajectory.csv");

@@ -59,18 +59,19 @@ Registry Registry::builtin() {
       [](const BuildContext& c, const BuiltSystem& b) -> std::unique_ptr<slam::RobotStarter> {
         const BuiltCamera& cam = b.cameras.front();
         return std::make_unique<InertialStarter>(
-            c.options.imu, cam.intrinsics, cam.T_RS,
+            c.options.imu, *cam.sensor, cam.intrinsics, cam.T_RS,
             dynamic_cast<strategies::ActiveSearchDataManager*>(cam.data_manager));
       });
   r.add_data_manager("active_search", [](const BuildContext& c, const slam::MapManager& mm,
-                                         const models::CameraIntrinsics& in) -> std::unique_ptr<slam::DataManager> {
-    return std::make_unique<strategies::ActiveSearchDataManager>(c.options.search, mm, in.width, in.height,
-                                                                 dm_seed(c.options));
+                                         const models::CameraIntrinsics& in,
+                                         std::uint64_t seed) -> std::unique_ptr<slam::DataManager> {
+    return std::make_unique<strategies::ActiveSearchDataManager>(c.options.search, mm, in.width, in.height, seed);
   });
   r.add_data_manager("known_association", [](const BuildContext& c, const slam::MapManager& mm,
-                                             const models::CameraIntrinsics& in) -> std::unique_ptr<slam::DataManager> {
+                                             const models::CameraIntrinsics& in,
+                                             std::uint64_t seed) -> std::unique_ptr<slam::DataManager> {
     return std::make_unique<strategies::KnownAssociationDataManager>(c.options.association, mm, in.width, in.height,
-                                                                     dm_seed(c.options));
+                                                                     seed);
   });
   r.add_map_manager("policy", [](const BuildContext& c) -> std::unique_ptr<slam::MapManager> {
     return std::make_unique<strategies::PolicyMapManager>(c.options.map);
@@ -110,9 +111,11 @@ BuiltSystem Registry::build(const BuildContext& c) const {
   const ImageSlamOptions& o = c.options;
   o.validate();
   check(o);
-  if (o.camera >= static_cast<int>(c.rig.cameras.size())) {
-    throw ConfigError(fmt::format("slam/camera = {}: dataset '{}' has {} camera(s)", o.camera, c.dataset,
-                                  c.rig.cameras.size()));
+  for (const int k : o.camera_indices()) {
+    if (k >= static_cast<int>(c.rig.cameras.size())) {
+      throw ConfigError(fmt::format("slam/camera{} = {}: dataset '{}' has {} camera(s)", o.cameras.empty() ? "" : "s",
+                                    k, c.dataset, c.rig.cameras.size()));
+    }
   }
   BuiltSystem b;
   b.world = std::make_unique<slam::World>();
@@ -124,7 +127,7 @@ BuiltSystem Registry::build(const BuildContext& c) const {
   b.map_manager = mm.get();
   slam::SystemOptions sys;
   sys.health = o.health;
-  sys.max_steps = o.max_frames;
+  sys.max_steps = o.max_frames * static_cast<long>(o.camera_indices().size());  // max_frames counts times
   // The starters' IMU window: the longest a start looks back, with room for a 1.5× faster IMU than calibrated.
   const double window_s = 2.0 * o.imu.init_window_s + o.imu.vi_init.max_window_s + 2.0;
   const double rate = c.rig.imu ? std::max(c.rig.imu->rate_hz, 1.0) : 200.0;
@@ -133,27 +136,34 @@ BuiltSystem Registry::build(const BuildContext& c) const {
 
   const RobotEntry& entry = robots_.at(o.robot);
   std::unique_ptr<slam::Robot> robot = entry.robot(c);
-  const io::CameraCalibration& cal = c.rig.cameras[static_cast<std::size_t>(o.camera)];
-  BuiltCamera cam;
-  cam.rig_index = o.camera;
-  cam.intrinsics = to_intrinsics(cal);
-  cam.T_RS = math::Pose::from_isometry(cal.T_RS);
-  cam.sensor = &robot->add_sensor(std::make_unique<slam::PinholeSensor>(cal.name, cam.intrinsics, cam.T_RS));
-  if (o.robot == "inertial" && o.imu.estimate_extrinsics) {
-    Eigen::Matrix<double, 6, 1> var;
-    const double rot = o.imu.extrinsics_std_deg * M_PI / 180.0;
-    var << Eigen::Vector3d::Constant(o.imu.extrinsics_std_m * o.imu.extrinsics_std_m),
-        Eigen::Vector3d::Constant(rot * rot);
-    cam.sensor->estimate_extrinsics(var.asDiagonal());
+  // One sensor and data manager per camera; they share the map's landmarks (each landmark has an observation for
+  // every sensor: one initialized in a camera is searched in the others).
+  const std::vector<int> indices = o.camera_indices();
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const io::CameraCalibration& cal = c.rig.cameras[static_cast<std::size_t>(indices[k])];
+    BuiltCamera cam;
+    cam.rig_index = indices[k];
+    cam.intrinsics = to_intrinsics(cal);
+    cam.T_RS = math::Pose::from_isometry(cal.T_RS);
+    cam.sensor = &robot->add_sensor(std::make_unique<slam::PinholeSensor>(cal.name, cam.intrinsics, cam.T_RS));
+    if (o.robot == "inertial" && o.imu.estimate_extrinsics) {
+      Eigen::Matrix<double, 6, 1> var;
+      const double rot = o.imu.extrinsics_std_deg * M_PI / 180.0;
+      var << Eigen::Vector3d::Constant(o.imu.extrinsics_std_m * o.imu.extrinsics_std_m),
+          Eigen::Vector3d::Constant(rot * rot);
+      cam.sensor->estimate_extrinsics(var.asDiagonal());
+    }
+    // Each camera's data manager draws from its own stream (the first keeps the single-camera seed).
+    std::unique_ptr<slam::DataManager> dm =
+        data_managers_.at(o.data_manager)(c, *b.map_manager, cam.intrinsics, dm_seed(o) + 104729 * k);
+    cam.data_manager = dm.get();
+    if (o.consistency == "fej") {
+      if (auto* as = dynamic_cast<strategies::ActiveSearchDataManager*>(dm.get())) as->set_first_estimate_jacobians(true);
+    }
+    cam.sensor->set_data_manager(std::move(dm));
+    b.cameras.push_back(cam);
   }
-  std::unique_ptr<slam::DataManager> dm = data_managers_.at(o.data_manager)(c, *b.map_manager, cam.intrinsics);
-  cam.data_manager = dm.get();
-  if (o.consistency == "fej") {
-    if (auto* as = dynamic_cast<strategies::ActiveSearchDataManager*>(dm.get())) as->set_first_estimate_jacobians(true);
-    robot->set_first_estimate_jacobians(true);
-  }
-  cam.sensor->set_data_manager(std::move(dm));
-  b.cameras.push_back(cam);
+  if (o.consistency == "fej") robot->set_first_estimate_jacobians(true);
   b.robot = robot.get();
   std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, b);
   b.starter = starter.get();

@@ -55,8 +55,9 @@ class Registry {
   using RobotMaker = std::function<std::unique_ptr<slam::Robot>(const BuildContext&)>;
   /// Made once the robot has its sensors and their data managers (`built.cameras` filled).
   using StarterMaker = std::function<std::unique_ptr<slam::RobotStarter>(const BuildContext&, const BuiltSystem&)>;
+  /// (context, the map manager, the camera, a seed of its own for the camera's random draws).
   using DataManagerMaker = std::function<std::unique_ptr<slam::DataManager>(
-      const BuildContext&, const slam::MapManager&, const models::CameraIntrinsics&)>;
+      const BuildContext&, const slam::MapManager&, const models::CameraIntrinsics&, std::uint64_t seed)>;
   using MapManagerMaker = std::function<std::unique_ptr<slam::MapManager>(const BuildContext&)>;
 
   /// The built-in types (header comment).

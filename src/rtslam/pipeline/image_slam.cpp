@@ -33,6 +33,12 @@ void ImageSlamOptions::validate() const {
   require_bound(state_capacity >= map.map_size, where, "state_capacity", state_capacity, ">= map_manager/map_size");
   require_bound(max_frames >= 0, where, "max_frames", max_frames, ">= 0");
   require_bound(camera >= 0, where, "camera", camera, ">= 0");
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    require_bound(cameras[i] >= 0 && cameras[i] < 64, where, "cameras", cameras[i], "in [0, 64)");
+    for (std::size_t j = 0; j < i; ++j) {
+      if (cameras[j] == cameras[i]) throw ConfigError(fmt::format("slam/cameras lists camera {} twice", cameras[i]));
+    }
+  }
   require_bound(rate_hz >= 0.0, where, "rate_hz", rate_hz, ">= 0");
   require_bound(sim_duration_s >= 0.0, "simulation", "duration", sim_duration_s, ">= 0");
   if (sim_preset.empty()) throw ConfigError("simulation/preset must not be empty");
@@ -56,6 +62,20 @@ void ImageSlamOptions::validate() const {
   health.validate();
 }
 
+std::vector<int> ImageSlamOptions::camera_indices() const {
+  return cameras.empty() ? std::vector<int>{camera} : cameras;
+}
+
+ImageSlamOptions ImageSlamOptions::on_selected_cameras() const {
+  ImageSlamOptions o = *this;
+  o.camera = 0;
+  o.cameras.clear();
+  if (cameras.size() > 1) {
+    for (std::size_t i = 0; i < cameras.size(); ++i) o.cameras.push_back(static_cast<int>(i));
+  }
+  return o;
+}
+
 void apply_image_slam_config(const YAML::Node& root, const std::string& where, ImageSlamOptions& o) {
   YamlMap top(root, where);
   {
@@ -69,6 +89,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     s.get("state_capacity", o.state_capacity);
     s.get("max_frames", o.max_frames);
     s.get("camera", o.camera);
+    s.get("cameras", o.cameras);
     s.get("rate_hz", o.rate_hz);
     s.get("known_landmarks", o.known_landmarks);
     s.get("known_landmarks_convention", o.known_landmarks_convention);
@@ -116,6 +137,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["slam"]["state_capacity"] = o.state_capacity;
   root["slam"]["max_frames"] = o.max_frames;
   root["slam"]["camera"] = o.camera;
+  root["slam"]["cameras"] = o.cameras;
   root["slam"]["rate_hz"] = o.rate_hz;
   root["slam"]["known_landmarks"] = o.known_landmarks;
   root["slam"]["known_landmarks_convention"] = o.known_landmarks_convention;
@@ -144,6 +166,11 @@ io::Dataset make_sim_dataset(const ImageSlamOptions& o) {
   sc.seed = o.seed;
   sc.trajectory_seed.reset();
   if (o.sim_duration_s > 0.0) sc.duration_s = o.sim_duration_s;
+  // The simulator renders camera 0, and camera 1 (the right camera of its stereo rig) when the options use it.
+  for (const int c : o.camera_indices()) {
+    if (c > 1) throw ConfigError(fmt::format("slam/cameras: the simulator has cameras 0 and 1, not {}", c));
+    if (c == 1) sc.stereo = true;
+  }
   sc.validate();
   return sim::Simulation::create(sc)->make_dataset();
 }
@@ -179,19 +206,52 @@ struct ImageSlam::Impl final : slam::Observer {
       else if (rig.imu && rig.imu->accel_saturation) accel_full_scale = *rig.imu->accel_saturation;
     }
     camera = &built.cameras.front();
-    active_search = dynamic_cast<const strategies::ActiveSearchDataManager*>(camera->data_manager);
+    by_rig_index.assign(rig.cameras.size(), nullptr);
+    for (const BuiltCamera& c : built.cameras) by_rig_index[static_cast<std::size_t>(c.rig_index)] = &c;
+    held.reserve(built.cameras.size());
+    held_paths.resize(built.cameras.size());
     result.inertial = inertial;
     const auto total = source.image_count();
-    n_total = total ? static_cast<int>(*total) : 0;
+    n_total = total ? static_cast<int>(*total / built.cameras.size()) : 0;  // progress counts the first camera's
     // One entry per image: reserved when the count is known, so that the frame loop does not reallocate them.
     result.frames.reserve(static_cast<std::size_t>(n_total));
     result.estimate.poses.reserve(static_cast<std::size_t>(n_total));
     built.system->add_observer(*this);
   }
 
+  // Several cameras: the images of one time are one frame of the result (statistics summed, the pose after the
+  // last of them) and one call of the observer.
+  static void merge(slam::FrameStats& a, const slam::FrameStats& b) {
+    a.landmarks_in_map = b.landmarks_in_map;
+    a.visible += b.visible;
+    a.searched += b.searched;
+    a.matched += b.matched;
+    a.updated += b.updated;
+    a.initialized += b.initialized;
+    a.ransac_inliers += b.ransac_inliers;
+    a.reparametrized += b.reparametrized;
+    a.removed += b.removed;
+    a.evicted += b.evicted;
+    a.refused += b.refused;
+    a.nis += b.nis;
+    a.nis_count += b.nis_count;
+    a.health = std::max(a.health, b.health);
+    a.reset = a.reset || b.reset;
+    a.time_predict_ms += b.time_predict_ms;
+    a.time_match_ms += b.time_match_ms;
+    a.time_ransac_ms += b.time_ransac_ms;
+    a.time_update_ms += b.time_update_ms;
+    a.time_init_ms += b.time_init_ms;
+    a.time_map_ms += b.time_map_ms;
+    a.time_total_ms += b.time_total_ms;
+  }
+
   void on_step(const slam::StepReport& s) override {
-    const slam::FrameStats& fs = result.frames.emplace_back(s.stats);
-    StampedPose& est = result.estimate.poses.emplace_back();
+    const bool same_time = !result.frames.empty() && result.frames.back().t == s.raw.t;
+    if (same_time) merge(result.frames.back(), s.stats);
+    else result.frames.push_back(s.stats);
+    const slam::FrameStats& fs = result.frames.back();
+    StampedPose& est = same_time ? result.estimate.poses.back() : result.estimate.poses.emplace_back();
     est.t = s.raw.t;
     const math::Pose T_WR = s.robot.pose();
     est.p_WR = T_WR.p;
@@ -207,21 +267,44 @@ struct ImageSlam::Impl final : slam::Observer {
     }
     est.cov = s.map.state().cov(s.robot.block()).topLeftCorner<6, 6>();
     const auto* image = dynamic_cast<const MatImage*>(&s.raw);
-    const bool overlay = s.index == o.overlay_frame;
-    if ((observer || overlay) && image != nullptr && active_search != nullptr) {
-      const ImageSlamFrame f{static_cast<int>(s.index), s.raw.t, &s.map, &active_search->last_frame(), &image->mat,
-                             &fs, &active_search->grid(), &est};
+    if (image != nullptr && (!image->closes_time || (observed_t && *observed_t == s.raw.t))) return;
+    observed_t = s.raw.t;
+    const int index = static_cast<int>(result.frames.size()) - 1;
+    const bool overlay = index == o.overlay_frame;
+    const auto* dm = dynamic_cast<const strategies::ActiveSearchDataManager*>(s.sensor.data_manager());
+    if ((observer || overlay) && image != nullptr && dm != nullptr) {
+      const ImageSlamFrame f{index, s.raw.t, &s.map, &dm->last_frame(), &image->mat, &fs, &dm->grid(), &est};
       if (overlay) write_overlay(o.overlay_path, f, o.search.n_sigma);
       if (observer) observer(f);
     }
   }
 
+  void feed_image(std::unique_ptr<MatImage> d, const std::string& path) {
+    try {
+      built.system->feed(std::move(d));
+    } catch (const DataError& e) {
+      throw DataError(fmt::format("{}: {}", path, e.what()));
+    }
+  }
+  // The held images of one time, the last one closing it.
+  void flush_held() {
+    for (std::size_t i = 0; i < held.size(); ++i) {
+      held[i]->closes_time = i + 1 == held.size();
+      feed_image(std::move(held[i]), held_paths[i]);
+    }
+    held.clear();
+  }
+
   // One measurement of the stream into the System; false at its end.
   bool feed_next() {
     auto m = source.next();
-    if (!m) return false;
+    if (!m) {
+      flush_held();
+      return false;
+    }
     slam::System& system = *built.system;
     if (const auto* imu = std::get_if<io::ImuSample>(&*m)) {
+      flush_held();
       if (!inertial) return true;
       ++result.imu_samples;
       if (gyro_full_scale > 0.0 && imu->gyro.cwiseAbs().maxCoeff() >= gyro_full_scale) ++result.imu_gyro_saturated;
@@ -234,17 +317,25 @@ struct ImageSlam::Impl final : slam::Observer {
       return true;
     }
     auto* frame = std::get_if<io::ImageFrame>(&*m);
-    if (frame == nullptr || frame->camera != camera->rig_index) return true;
+    if (frame == nullptr) return true;
+    const BuiltCamera* cam = frame->camera >= 0 && static_cast<std::size_t>(frame->camera) < by_rig_index.size()
+                                 ? by_rig_index[static_cast<std::size_t>(frame->camera)]
+                                 : nullptr;
+    if (cam == nullptr) return true;
     if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
-    ++consumed;
+    if (cam == camera) ++consumed;
     auto d = system.spare<MatImage>();
-    d->set(frame->t + t_d, camera->sensor->id(), std::move(frame->image));
-    try {
-      system.feed(std::move(d));
-    } catch (const DataError& e) {
-      throw DataError(fmt::format("{}: {}", frame->path, e.what()));
+    d->set(frame->t + t_d, cam->sensor->id(), std::move(frame->image));
+    if (built.cameras.size() == 1) {
+      feed_image(std::move(d), frame->path);
+    } else {
+      // Several cameras: an image waits for the others of its time (they come together in the stream).
+      if (!held.empty() && held.front()->t != d->t) flush_held();
+      held_paths[held.size()] = frame->path;
+      held.push_back(std::move(d));
+      if (held.size() == built.cameras.size()) flush_held();
     }
-    if (progress) progress(consumed, n_total);
+    if (progress && cam == camera) progress(consumed, n_total);
     return true;
   }
 
@@ -317,8 +408,11 @@ struct ImageSlam::Impl final : slam::Observer {
   std::string name;
   ImageSlamOptions o;
   BuiltSystem built;
-  const BuiltCamera* camera = nullptr;
-  const strategies::ActiveSearchDataManager* active_search = nullptr;
+  const BuiltCamera* camera = nullptr;  // the first (reference) camera
+  std::vector<const BuiltCamera*> by_rig_index;
+  std::vector<std::unique_ptr<MatImage>> held;  // several cameras: images of one time not fed yet
+  std::vector<std::string> held_paths;
+  std::optional<TimeNs> observed_t;             // the time the observer last saw
   bool inertial = false;
   TimeNs t_d = 0;  // t_imu = t_cam + t_d
   double gyro_full_scale = 0.0, accel_full_scale = 0.0;  // 0: unknown

@@ -13,7 +13,8 @@
 //
 // YAML layout (every key optional, unknown keys are errors naming the key; docs/configuration.md):
 //   slam:        {seed, robot: constant_velocity|inertial, data_manager: active_search, map_manager: policy,
-//                 consistency: none|oc|fej, initial_velocity_std, state_capacity, max_frames, camera, rate_hz,
+//                 consistency: none|oc|fej, initial_velocity_std, state_capacity, max_frames, camera, cameras,
+//                 rate_hz,
 //                 known_landmarks, known_landmarks_convention, overlay_frame, overlay_path}
 //   motion:      {sigma_v, sigma_w}                (constant-velocity robot)
 //   imu:         see inertial_init.hpp             (inertial robot)
@@ -59,8 +60,11 @@ struct ImageSlamOptions {
   std::string consistency = "none";
   double initial_velocity_std = 0.5;  // m/s and rad/s: prior std of v and ω (RT-SLAM)
   int state_capacity = 600;           // covariance rows of the filter storage (>= map_manager.map_size)
-  int max_frames = 0;                 // stop after this many images (0: all)
-  int camera = 0;                     // index in the Rig
+  int max_frames = 0;                 // stop after this many image times (0: all; several cameras: each time once)
+  int camera = 0;                     // index in the Rig (one camera)
+  // Several cameras on the robot (slam/cameras: [0, 1]: stereo EuRoC), each with its own data manager, sharing the
+  // map's landmarks; empty: `camera` alone. The first one starts the robot and is the reference of the outputs.
+  std::vector<int> cameras;
   double rate_hz = 0.0;               // image rate for image folders without timestamps (0: the dataset's)
   std::string known_landmarks;        // folder of a known-landmark set (known_landmarks.hpp); empty: none
   std::string known_landmarks_convention = "robot";  // that set's state: robot (as is) | scenelib (converted)
@@ -75,6 +79,11 @@ struct ImageSlamOptions {
   strategies::MapPolicyOptions map;
   slam::HealthOptions health;
   void validate() const;
+  /// The cameras used: `cameras`, or {camera}.
+  std::vector<int> camera_indices() const;
+  /// These options for a dataset opened with only camera_indices() streamed (io::DatasetOptions::cameras): its Rig
+  /// then holds those cameras as 0, 1, ..., so the indices become those.
+  ImageSlamOptions on_selected_cameras() const;
 };
 
 /// Reads a configuration file over the defaults; throws IoError/ConfigError naming the file and key.

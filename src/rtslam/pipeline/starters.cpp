@@ -47,9 +47,10 @@ void PoseStarter::started(slam::Map& map, slam::Robot& robot, bool first) {
   if (known_ && first) known_added_ = add_known_landmarks(map, *robot.sensors().front(), *known_);
 }
 
-InertialStarter::InertialStarter(const InertialOptions& options, const models::CameraIntrinsics& intrinsics,
-                                 const math::Pose& T_RS, strategies::ActiveSearchDataManager* dm)
-    : o_(options), camera_(intrinsics), T_RS_(T_RS), dm_(dm) {}
+InertialStarter::InertialStarter(const InertialOptions& options, const slam::Sensor& camera,
+                                 const models::CameraIntrinsics& intrinsics, const math::Pose& T_RS,
+                                 strategies::ActiveSearchDataManager* dm)
+    : o_(options), sensor_(camera), camera_(intrinsics), T_RS_(T_RS), dm_(dm) {}
 
 void InertialStarter::restart() {
   first_image_t_ = -1;
@@ -79,6 +80,10 @@ std::optional<slam::RobotStart> InertialStarter::imu_only(TimeNs t, const RingBu
 
 std::optional<slam::RobotStart> InertialStarter::offer(const slam::RawData& datum,
                                                        const RingBuffer<slam::ImuData>& inputs) {
+  if (datum.sensor_id != sensor_.id()) {  // another camera: the start uses the first one's images
+    ++skipped_;
+    return std::nullopt;
+  }
   offered_ = &datum;
   sensor_id_ = datum.sensor_id;
   if (!o_.vi_init.enabled) {

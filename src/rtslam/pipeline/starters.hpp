@@ -19,6 +19,7 @@
 #include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
 #include "rtslam/pipeline/vi_init.hpp"
+#include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
 #include "rtslam/strategies/active_search.hpp"
 
@@ -27,10 +28,14 @@ namespace rtslam::pipeline {
 /// An image datum that owns its pixels (the source's cv::Mat, reference counted: no copy).
 struct MatImage final : strategies::RawImage {
   cv::Mat mat;
+  // The last image of its time (several cameras: the others of the same time come first): the session's observers
+  // see a time once, after its last image.
+  bool closes_time = true;
   void set(TimeNs time, int sensor, cv::Mat m) {
     t = time;
     sensor_id = sensor;
     mat = std::move(m);
+    closes_time = true;
     image = vision::ImageView{mat.data, mat.cols, mat.rows, static_cast<int>(mat.step[0])};
   }
   void release() override {
@@ -58,9 +63,10 @@ class PoseStarter final : public slam::RobotStarter {
 
 class InertialStarter final : public slam::RobotStarter {
  public:
-  /// `dm`: the camera's data manager, given the scene depth of a visual-inertial start (may be null).
-  InertialStarter(const InertialOptions& options, const models::CameraIntrinsics& intrinsics, const math::Pose& T_RS,
-                  strategies::ActiveSearchDataManager* dm);
+  /// `camera`: the camera whose images the start uses (with several, the others' images before the start are
+  /// dropped); `dm`: its data manager, given the scene depth of a visual-inertial start (may be null).
+  InertialStarter(const InertialOptions& options, const slam::Sensor& camera, const models::CameraIntrinsics& intrinsics,
+                  const math::Pose& T_RS, strategies::ActiveSearchDataManager* dm);
   std::optional<slam::RobotStart> offer(const slam::RawData& datum, const RingBuffer<slam::ImuData>& inputs) override;
   void started(slam::Map& map, slam::Robot& robot, bool first) override;
   void restart() override;
@@ -71,6 +77,7 @@ class InertialStarter final : public slam::RobotStarter {
   std::optional<slam::RobotStart> try_visual_inertial(const RingBuffer<slam::ImuData>& inputs);
 
   InertialOptions o_;
+  const slam::Sensor& sensor_;
   models::PinholeCamera camera_;
   math::Pose T_RS_;
   strategies::ActiveSearchDataManager* dm_;

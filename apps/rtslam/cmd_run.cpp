@@ -70,6 +70,7 @@ struct RunOptions {
   int overlay_every = 1;
   std::string video;                   // --video FILE
   bool force = false;                  // --force: replace the outputs of an earlier run in --out
+  io::DatasetOptions input;            // --bad-input, --calibration, --timestamps, --max-imu-dropout, bag topics
 };
 
 // The files of a run in --out (and their .tmp), besides overlays/, overlay_NNNNN.png and the --video file there.
@@ -401,7 +402,7 @@ void run_dataset(const RunOptions& ro) {
   }
   prepare_out_dir(ro);          // an earlier run's outputs: refused, or removed with --force
   RunDisplays displays(ro, o);  // before the input: a port in use or a bad path fails at once
-  io::DatasetOptions dopt;
+  io::DatasetOptions dopt = ro.input;
   dopt.use_imu = o.robot == "inertial";
   dopt.cameras = o.camera_indices();
   dopt.rate_hz = ro.rate_hz ? *ro.rate_hz : o.rate_hz;
@@ -484,9 +485,10 @@ void run_dataset(const RunOptions& ro) {
               {"map", stage_median(&slam::FrameStats::time_map_ms)}};
 
     summary["status"] = interrupted ? "interrupted" : "complete";
-    summary["mode"] = result.inertial ? "inertial-monocular EKF-SLAM: IMU-driven prediction, active search, one-point "
-                                        "RANSAC, AHP landmarks"
-                                      : "monocular EKF-SLAM on images: active search, one-point RANSAC, AHP landmarks";
+    summary["mode"] = fmt::format("{}{} EKF-SLAM{}: active search, one-point RANSAC, AHP landmarks",
+                                  result.inertial ? "inertial-" : "",
+                                  result.cameras > 1 ? fmt::format("{}-camera", result.cameras) : "monocular",
+                                  result.inertial ? " with IMU-driven prediction" : " on images");
     if (result.inertial) {
       const auto v3 = [](const Eigen::Vector3d& v) { return std::vector<double>{v.x(), v.y(), v.z()}; };
       summary["imu"] = {{"start", result.inertial_start},
@@ -563,7 +565,9 @@ void run_dataset(const RunOptions& ro) {
     }
     if (reference && result.estimate.poses.size() >= 3) {
       try {
-        const eval::RunAccuracy acc = eval::evaluate_accuracy(result.estimate, *reference, result.inertial);
+        // Metric scale (SE(3) ATE and the scale error): an IMU or a stereo baseline; monocular: Sim(3).
+        const eval::RunAccuracy acc =
+            eval::evaluate_accuracy(result.estimate, *reference, result.inertial || result.cameras > 1);
         summary["accuracy"] = acc.json;
         summary["accuracy"]["reference"] = ro.groundtruth.empty() ? std::string("dataset") : ro.groundtruth;
         summary["ate_percent_of_path"] = acc.json["ate_percent_of_path"];
@@ -701,12 +705,51 @@ void register_run(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--stop-after", opts->stop_after_s, "Process this many seconds of input from the start (0: all)")
       ->check(CLI::NonNegativeNumber);
+  // The input options of io::DatasetOptions (docs/datasets.md, docs/ros.md); --rate, --start-at and --stop-after above.
+  sub->add_option_function<std::string>(
+         "--bad-input",
+         [opts](const std::string& v) { opts->input.bad_input = io::bad_input_policy_from_string(v, "--bad-input"); },
+         "Bad input (timestamps out of order, duplicates, NaN, IMU samples beyond the sensor's range, malformed "
+         "lines, missing or undecodable images): error (default: stop with one line naming the file) or skip (drop "
+         "it, count it in summary.json input/*, warn)")
+      ->type_name("error|skip")
+      ->check(CLI::IsMember({"error", "skip"}));
+  sub->add_option("--calibration", opts->input.calibration,
+                  "Calibration file overriding the dataset's own (EuRoC sensor.yaml, Kalibr camchain.yaml, rtslam rig "
+                  "YAML, MonoSLAM camera.json; for bags also an EuRoC folder)")
+      ->check(CLI::ExistingPath);
+  sub->add_option("--timestamps", opts->input.timestamps,
+                  "Image folders: timestamps file (one time in s per line, or 'time filename' lines) instead of "
+                  "times.txt / timestamps.txt")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--max-imu-dropout", opts->input.max_imu_dropout,
+                  "More missing IMU samples than this in a row are an IMU gap (reported; an error unless --bad-input "
+                  "skip)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, io::DatasetOptions::kMaxImuDropout));
+  sub->add_option_function<std::string>(
+         "--image-topic", [opts](const std::string& v) { opts->input.image_topics = {v}; },
+         "ROS bags: the camera's image topic (default /camN/image_raw, N = slam/camera)")
+      ->type_name("TOPIC");
+  sub->add_option("--imu-topic", opts->input.imu_topic, "ROS bags: the IMU topic (empty: none)")
+      ->capture_default_str();
+  sub->add_flag("--bag-receive-time", opts->input.bag_receive_time,
+                "ROS bags: stamp measurements with the bag's receive times instead of the header stamps");
   sub->add_flag("--quiet", opts->quiet, "No progress line");
   sub->add_flag("--force", opts->force,
                 "Replace the outputs of an earlier run in --out (exactly rtslam's files: config.yaml, trajectory.*, "
                 "groundtruth.txt, frames.csv, map.ply, summary.json, overlays/, overlay_*.png, the --video file "
                 "there; other files stay). Without it such a folder is refused");
-  sub->callback([opts] {
+  sub->callback([opts, sub] {
+    // The input options act on datasets only: on the simulator (or the points demo) they would be ignored silently.
+    if (opts->dataset.empty() || opts->dataset.rfind("sim:", 0) == 0) {
+      for (const char* flag : {"--bad-input", "--calibration", "--timestamps", "--max-imu-dropout", "--image-topic",
+                               "--imu-topic", "--bag-receive-time"}) {
+        if (sub->count(flag) > 0) {
+          throw ConfigError(fmt::format("{} applies to --dataset runs (not the simulator or --points-demo)", flag));
+        }
+      }
+    }
     if (opts->points_demo) {
       if (!opts->dataset.empty()) throw ConfigError("--points-demo and --dataset exclude each other");
       if (opts->view || opts->overlays || !opts->video.empty() || opts->overlay_frame) {

@@ -19,6 +19,7 @@
 #include <chrono>
 #include <thread>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
@@ -445,6 +446,90 @@ TEST(Cli, ImuNoiseOnTheRecordedV101FlightGivesThePresetsDensities) {
   };
   EXPECT_NEAR(number_after("accelerometer_noise_density") / 7.0e-3, 1.0, 0.1) << j;
   EXPECT_NEAR(number_after("gyroscope_noise_density") / 3.4e-4, 1.0, 0.1) << j;
+}
+
+}  // namespace
+
+namespace {
+
+// Issue 17 item 7: every documented input option reaches `rtslam run`.
+TEST(Cli, RunHelpListsEveryInputOption) {
+  const Result r = run("run --help");
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* opt : {"--bad-input", "--calibration", "--timestamps", "--max-imu-dropout", "--rate", "--start-at",
+                          "--stop-after", "--image-topic", "--imu-topic", "--bag-receive-time"}) {
+    EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
+  }
+}
+
+TEST(Cli, RunInputOptionsReachTheReaderAndBadInputSkipCountsWhatItDrops) {
+  const fs::path d = temp_dir("input_options");
+  fs::create_directories(d / "frames");
+  fs::create_directories(d / "calib");
+  cv::Mat img(48, 64, CV_8UC1);
+  for (int i = 0; i < 3; ++i) {
+    cv::randu(img, 0, 255);
+    cv::imwrite((d / "frames" / fmt::format("{}.png", i)).string(), img);
+  }
+  std::ofstream(d / "calib" / "cam.json") << R"({"model": "pinhole", "width": 64, "height": 48, "focal_length_x": 50,
+    "focal_length_y": 50, "principal_point_x": 32, "principal_point_y": 24})";
+  // The timestamps list a fourth image that is missing.
+  std::ofstream(d / "calib" / "times.txt") << "0.0 0.png\n0.1 1.png\n0.2 2.png\n0.3 3.png\n";
+  const std::string common = fmt::format("run --dataset images:{} --calibration {} --timestamps {} --quiet --force",
+                                         (d / "frames").string(), (d / "calib" / "cam.json").string(),
+                                         (d / "calib" / "times.txt").string());
+  // Without the options the folder has no calibration: the error names the option to use.
+  const Result none = run(fmt::format("run --dataset images:{} --out {} --quiet", (d / "frames").string(),
+                                      (d / "o0").string()));
+  EXPECT_NE(none.code, 0);
+  EXPECT_NE(none.out.find("no calibration file found"), std::string::npos) << none.out;
+  const Result err = run(common + " --out " + (d / "o1").string());
+  EXPECT_NE(err.code, 0);
+  EXPECT_EQ(count_lines(err.out), 1) << err.out;
+  EXPECT_NE(err.out.find("times.txt:4: image file"), std::string::npos) << err.out;
+  const Result skip = run(common + " --bad-input skip --out " + (d / "o2").string());
+  ASSERT_EQ(skip.code, 0) << skip.out;
+  const std::string summary = read_file(d / "o2" / "summary.json");
+  EXPECT_NE(summary.find("\"missing_images\": 1"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("\"images\": 3"), std::string::npos) << summary;
+  fs::remove_all(d);
+}
+
+TEST(Cli, RunInputOptionsOnTheSimulatorAndOutOfRangeValuesAreOneLineErrors) {
+  const fs::path d = temp_dir("input_option_errors");
+  const Result sim = run("run --bad-input skip --out " + (d / "o").string());
+  EXPECT_NE(sim.code, 0);
+  EXPECT_NE(sim.out.find("--bad-input applies to --dataset runs"), std::string::npos) << sim.out;
+  const Result bad = run("run --dataset images:" + d.string() + " --bad-input ignore --out " + (d / "o").string());
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--bad-input"), std::string::npos) << bad.out;
+  const Result dropout = run("run --dataset images:" + d.string() + " --max-imu-dropout -2 --out " + (d / "o").string());
+  EXPECT_NE(dropout.code, 0);
+  EXPECT_NE(dropout.out.find("--max-imu-dropout"), std::string::npos) << dropout.out;
+  fs::remove_all(d);
+}
+
+// Issue 17: an oversized grid hung (4 GB in 30 s); a state capacity ended in std::bad_alloc; --config DIR threw
+// basic_filebuf's message. Each is now one line naming the file or the key, before anything runs.
+TEST(Cli, OversizedConfigValuesAreOneLineErrorsNamingFileAndKey) {
+  const fs::path d = temp_dir("oversized");
+  std::ofstream(d / "grid.yaml") << "search:\n  grid: {cells_x: 100000, cells_y: 100000}\n";
+  const Result grid = run(fmt::format("run --config {} --duration 0.2 --quiet --out {}", (d / "grid.yaml").string(),
+                                      (d / "o1").string()));
+  EXPECT_EQ(grid.code, 1);
+  EXPECT_EQ(count_lines(grid.out), 1) << grid.out;
+  EXPECT_NE(grid.out.find("grid.yaml/search/grid: cells_x = 100000 must be in [1, 64]"), std::string::npos)
+      << grid.out;
+  std::ofstream(d / "cap.yaml") << "slam:\n  state_capacity: 100000\n";
+  const Result cap = run(fmt::format("run --config {} --duration 0.2 --quiet --out {}", (d / "cap.yaml").string(),
+                                     (d / "o2").string()));
+  EXPECT_NE(cap.code, 0);
+  EXPECT_EQ(cap.out.find("bad_alloc"), std::string::npos) << cap.out;
+  EXPECT_NE(cap.out.find("state_capacity"), std::string::npos) << cap.out;
+  const Result dir = run(fmt::format("run --config {} --quiet --out {}", d.string(), (d / "o3").string()));
+  EXPECT_EQ(dir.code, 1);
+  EXPECT_NE(dir.out.find(d.string() + ": is a directory"), std::string::npos) << dir.out;
+  fs::remove_all(d);
 }
 
 }  // namespace

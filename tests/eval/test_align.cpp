@@ -148,3 +148,41 @@ TEST(Alignment, ParsesNamesAndRejectsUnknownOnes) {
   EXPECT_EQ(to_string(parse_alignment("sim3")), "sim3");
   EXPECT_THROW(parse_alignment("se2"), ConfigError);
 }
+
+namespace rtslam::eval {
+namespace {
+
+// Issue 17: a 3-pose `eval --align sim3` gave a scale of 0.009 and an ATE of 4 um.
+TEST(AlignmentGeometry, TooFewPosesForTheFitAreRefused) {
+  const std::vector<Eigen::Vector3d> three = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const std::vector<Eigen::Vector3d> est = {{0, 0, 0}, {0.5, 3, 0}, {1, 0, 2}};
+  EXPECT_THROW(check_alignment_geometry(est, three, Alignment::Sim3), DataError);
+  EXPECT_THROW(check_alignment_geometry(est, three, Alignment::Se3), DataError);
+  EXPECT_NO_THROW(check_alignment_geometry(est, three, Alignment::Origin));
+  Trajectory e, g;
+  for (int i = 0; i < 3; ++i) {
+    StampedPose p;
+    p.t = i;
+    p.p_WR = est[static_cast<std::size_t>(i)];
+    e.poses.push_back(p);
+    p.p_WR = three[static_cast<std::size_t>(i)];
+    g.poses.push_back(p);
+  }
+  EXPECT_THROW(compute_alignment(e, g, Alignment::Sim3), DataError);
+}
+
+TEST(AlignmentGeometry, CollinearPositionsAreRefusedAndASpreadTrajectoryPasses) {
+  std::vector<Eigen::Vector3d> line, noisy_line, spread;
+  for (int i = 0; i < 10; ++i) {
+    line.emplace_back(i, 0, 0);
+    noisy_line.emplace_back(i, 1e-5 * (i % 2), 0);  // 5 um across 2.9 m: still a line
+    spread.emplace_back(i, std::sin(i), 0.1 * i * i);
+  }
+  EXPECT_THROW(check_alignment_geometry(spread, line, Alignment::Sim3), DataError);
+  EXPECT_THROW(check_alignment_geometry(noisy_line, spread, Alignment::Se3), DataError);
+  EXPECT_NO_THROW(check_alignment_geometry(spread, spread, Alignment::Sim3));
+  EXPECT_NO_THROW(check_alignment_geometry(line, line, Alignment::PosYaw));
+}
+
+}  // namespace
+}  // namespace rtslam::eval

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/filter/kernels.hpp"
 #include "rtslam/math/rotation.hpp"
@@ -591,6 +592,27 @@ TEST(State, GenericAndAvx2KernelsGiveBitIdenticalStates) {
   const auto avx2 = run(KernelIsa::avx2);
   EXPECT_EQ(std::memcmp(generic.first.data(), avx2.first.data(), sizeof(double) * generic.first.size()), 0);
   EXPECT_EQ(std::memcmp(generic.second.data(), avx2.second.data(), sizeof(double) * generic.second.size()), 0);
+}
+
+}  // namespace
+}  // namespace rtslam::filter
+
+namespace rtslam::filter {
+namespace {
+
+// Issue 17: slam/state_capacity: 100000 ended in std::bad_alloc (an 80 GB covariance) with no key named.
+TEST(StateOptions, ACapacityBeyondTheBoundIsAConfigErrorNamingTheKeyNotABadAlloc) {
+  StateOptions o;
+  o.tangent_capacity = 100000;
+  try {
+    State s(o);
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("slam/state_capacity"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("must be in [1, 10000]"), std::string::npos) << e.what();
+  }
+  o.tangent_capacity = 600;
+  EXPECT_NO_THROW(State{o});
 }
 
 }  // namespace

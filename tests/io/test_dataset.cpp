@@ -157,8 +157,9 @@ TEST(Dataset, ReadsKittiLayout) {
   TempDir dir;
   const std::string seq = dir / "sequences/04";
   fs::create_directories(seq + "/image_0");
+  // KITTI 04's image size: the calibration is checked against it (principal point inside, a plausible field of view).
   for (int i = 0; i < 4; ++i) {
-    cv::imwrite(fmt::format("{}/image_0/{:06d}.png", seq, i), cv::Mat(6, 8, CV_8UC1, cv::Scalar(i)));
+    cv::imwrite(fmt::format("{}/image_0/{:06d}.png", seq, i), cv::Mat(376, 1241, CV_8UC1, cv::Scalar(i)));
   }
   write_text(seq + "/times.txt", "0.000000e+00\n1.036070e-01\n2.072140e-01\n3.108210e-01\n");
   write_text(seq + "/calib.txt",
@@ -174,7 +175,7 @@ TEST(Dataset, ReadsKittiLayout) {
   ASSERT_EQ(ds.rig.cameras.size(), 1u);
   EXPECT_DOUBLE_EQ(ds.rig.cameras[0].fx, 707.0912);
   EXPECT_DOUBLE_EQ(ds.rig.cameras[0].cy, 183.1104);
-  EXPECT_EQ(ds.rig.cameras[0].width, 8);
+  EXPECT_EQ(ds.rig.cameras[0].width, 1241);
   ASSERT_TRUE(ds.ground_truth.has_value());
   EXPECT_TRUE(ds.ground_truth->has_timestamps);
   EXPECT_EQ(ds.ground_truth->poses[3].t, 310'821'000);
@@ -187,7 +188,9 @@ TEST(Dataset, ReadsKittiLayout) {
   DatasetOptions o;
   o.cameras = {1};
   fs::create_directories(seq + "/image_1");
-  for (int i = 0; i < 4; ++i) cv::imwrite(fmt::format("{}/image_1/{:06d}.png", seq, i), cv::Mat(6, 8, CV_8UC1));
+  for (int i = 0; i < 4; ++i) {
+    cv::imwrite(fmt::format("{}/image_1/{:06d}.png", seq, i), cv::Mat(376, 1241, CV_8UC1, cv::Scalar(0)));
+  }
   Dataset right = open_dataset("kitti:" + seq, o);
   EXPECT_NEAR(right.rig.cameras[0].T_RS.translation().x(), 0.537150, 1e-6);
 }

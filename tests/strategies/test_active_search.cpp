@@ -10,7 +10,9 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/slam/system.hpp"
+#include "rtslam/core/yaml.hpp"
 #include "rtslam/strategies/active_search.hpp"
+#include "rtslam/strategies/init_grid.hpp"
 #include "rtslam/strategies/map_policies.hpp"
 #include "rtslam/vision/warp.hpp"
 
@@ -352,6 +354,51 @@ TEST(ActiveSearchOptions, RejectsBadValuesNamingTheKey) {
   EXPECT_EQ(p.sigma_px, 1.5);
   EXPECT_EQ(p.grid.cells_x, 8);
   EXPECT_EQ(p.zncc.threshold, 0.85);
+}
+
+}  // namespace
+}  // namespace rtslam::strategies
+
+namespace rtslam::strategies {
+namespace {
+
+std::string config_error_of(const std::string& yaml) {
+  try {
+    YamlMap top(YAML::Load(yaml), "cfg.yaml");
+    YamlMap s = top.child("search");
+    ActiveSearchOptions::from_yaml(s);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+// Issue 17: search, zncc, grid and d_min errors named neither the file nor the key path; a 100000x100000 grid hung.
+TEST(ActiveSearchOptionsBounds, ErrorsNameTheFileTheKeyPathAndTheBound) {
+  EXPECT_EQ(config_error_of("search: {grid: {cells_x: 100000, cells_y: 100000}}"),
+            "cfg.yaml/search/grid: cells_x = 100000 must be in [1, 64]");
+  EXPECT_EQ(config_error_of("search: {zncc: {threshold: 2}}"), "cfg.yaml/search/zncc: threshold = 2 must be in [-1, 1]");
+  EXPECT_EQ(config_error_of("search: {d_min: -1}"), "cfg.yaml/search: d_min = -1 must be in [1e-3, 1e4] m");
+  EXPECT_EQ(config_error_of("search: {n_sigma: 1e9}"), "cfg.yaml/search: n_sigma = 1000000000 must be in (0, 10]");
+  EXPECT_EQ(config_error_of("search: {harris: {border_px: 100000}}"),
+            "cfg.yaml/search/harris: border_px = 100000 must be in [0, 1000] px");
+  EXPECT_EQ(config_error_of("search: {n_sigma: 3}"), "(no error)");
+}
+
+TEST(ActiveSearchOptionsBounds, GridCellsSmallerThanFourPixelsOnTheImageAreRefused) {
+  InitGridOptions g;
+  g.cells_x = 64;
+  g.cells_y = 4;
+  EXPECT_THROW(InitGrid(200, 100, g), ConfigError);  // (200 - 16) / 64 = 2.9 px
+  EXPECT_NO_THROW(InitGrid(752, 480, g));
+}
+
+TEST(MapPolicyOptionsBounds, MapSizeHasAnUpperBound) {
+  MapPolicyOptions m;
+  m.map_size = 1'000'000;
+  EXPECT_THROW(m.validate(), ConfigError);
+  m.map_size = 500;
+  EXPECT_NO_THROW(m.validate());
 }
 
 }  // namespace

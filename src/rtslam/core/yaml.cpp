@@ -7,6 +7,7 @@ namespace rtslam {
 
 YAML::Node load_yaml_file(const std::string& path) {
   if (!std::filesystem::exists(path)) throw IoError(fmt::format("{}: file not found", path));
+  if (std::filesystem::is_directory(path)) throw IoError(fmt::format("{}: is a directory, not a YAML file", path));
   try {
     return YAML::LoadFile(path);
   } catch (const YAML::ParserException& e) {
@@ -16,7 +17,17 @@ YAML::Node load_yaml_file(const std::string& path) {
   }
 }
 
-YamlMap::YamlMap(YAML::Node node, std::string where) : node_(std::move(node)), where_(std::move(where)) {
+namespace detail {
+std::string yaml_node_text(const YAML::Node& n) {
+  if (n.IsScalar()) return fmt::format("'{}'", n.Scalar());
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a mapping";
+  return "null";
+}
+}  // namespace detail
+
+YamlMap::YamlMap(YAML::Node node, std::string where)
+    : node_(std::move(node)), where_(std::move(where)), file_(where_) {
   if (node_ && !node_.IsNull() && !node_.IsMap()) {
     throw ConfigError(fmt::format("{}: expected a mapping", where_));
   }
@@ -27,11 +38,14 @@ std::string YamlMap::path_of(const std::string& key) const { return key; }
 bool YamlMap::has(const std::string& key) const { return node_ && node_.IsMap() && node_[key]; }
 
 YamlMap YamlMap::child(const std::string& key) {
-  if (!has(key)) return YamlMap(YAML::Node(YAML::NodeType::Map), where_ + "/" + key);
+  YamlMap out(YAML::Node(YAML::NodeType::Map), where_ + "/" + key);
+  out.file_ = file_;
+  if (!has(key)) return out;
   used_.insert(key);
   const YAML::Node sub = node_[key];
   if (!sub.IsMap()) throw ConfigError(fmt::format("{}: '{}' must be a mapping", where_, key));
-  return YamlMap(sub, where_ + "/" + key);
+  out.node_ = sub;
+  return out;
 }
 
 void YamlMap::get_matrix(const std::string& key, Eigen::Ref<Eigen::MatrixXd> value) {

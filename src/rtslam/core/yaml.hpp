@@ -10,12 +10,13 @@
 
 namespace rtslam {
 
-/// Loads a YAML file; throws IoError (missing/unreadable) or ConfigError (syntax) naming the file.
+/// Loads a YAML file; throws IoError (missing, a directory, unreadable) or ConfigError (syntax) naming the file.
 YAML::Node load_yaml_file(const std::string& path);
 
 /// A view of one YAML mapping with key tracking. `where` names the file and key path for messages.
 class YamlMap {
  public:
+  /// A file's top-level mapping: `where` is the file (child() appends the key path to it).
   YamlMap(YAML::Node node, std::string where);
 
   bool has(const std::string& key) const;
@@ -33,17 +34,25 @@ class YamlMap {
   void finish() const;
 
   const std::string& where() const { return where_; }
+  /// The file the mapping came from (the `where` of the top-level map), for messages of checks made later.
+  const std::string& file() const { return file_; }
   const YAML::Node& node() const { return node_; }
   std::string path_of(const std::string& key) const;
 
  private:
   YAML::Node node_;
   std::string where_;
+  std::string file_;
   std::set<std::string> used_;
 };
 
 /// Throws ConfigError "<where>: <key> = <value> must be <bound>" if !ok.
 void require_bound(bool ok, const std::string& where, const std::string& key, double value, const std::string& bound);
+
+/// Runs `check` (an options struct's validate()); a ConfigError it throws is rethrown with "<file>: " in front, so
+/// that a bound violated by a value read from `file` names the file as well as the key path.
+template <class F>
+void validate_in_file(const std::string& file, F&& check);
 
 }  // namespace rtslam
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <fmt/format.h>
 
@@ -111,11 +112,45 @@ std::vector<Eigen::Vector3d> positions(const Trajectory& traj) {
 }
 }  // namespace
 
+void check_alignment_geometry(const std::vector<Eigen::Vector3d>& est, const std::vector<Eigen::Vector3d>& gt,
+                              Alignment method) {
+  if (method != Alignment::Se3 && method != Alignment::Sim3) return;
+  // A fit needs more numbers than it has parameters, or its residual (the ATE) is the leftover of an interpolation:
+  // 3n coordinates, 6 (SE3) or 7 (Sim3) parameters; at least as many residual degrees of freedom as parameters.
+  const std::size_t params = method == Alignment::Sim3 ? 7 : 6;
+  const std::size_t min_poses = (2 * params + 2) / 3;  // 3n - p >= p
+  if (est.size() < min_poses) {
+    throw DataError(fmt::format("{} alignment: {} associated poses, at least {} needed (it fits {} parameters to 3 "
+                                "coordinates a pose; fewer poses make the ATE the residual of an interpolation)",
+                                to_string(method), est.size(), min_poses, params));
+  }
+  // Collinear positions leave the rotation about their line undetermined (and a Sim3 scale ill-conditioned).
+  for (const auto* set : {&gt, &est}) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& p : *set) mean += p;
+    mean /= static_cast<double>(set->size());
+    Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+    for (const auto& p : *set) C += (p - mean) * (p - mean).transpose();
+    const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C / static_cast<double>(set->size()),
+                                                                              Eigen::EigenvaluesOnly)
+                                   .eigenvalues()
+                                   .cwiseMax(0.0)
+                                   .cwiseSqrt();  // principal standard deviations, ascending
+    if (!(ev[1] > kMinAlignmentSpreadRatio * ev[2])) {
+      throw DataError(fmt::format(
+          "{} alignment: the {} positions lie on a line (spread {:.3g} m along it, {:.3g} m across): the rotation "
+          "about it is undetermined; use --align origin or none, or a longer trajectory",
+          to_string(method), set == &gt ? "ground-truth" : "estimated", ev[2], ev[1]));
+    }
+  }
+}
+
 Sim3 compute_alignment(const Trajectory& est, const Trajectory& gt, Alignment method) {
   if (est.poses.size() != gt.poses.size())
     throw DataError(fmt::format("alignment: trajectories are not associated ({} vs {} poses)", est.poses.size(),
                                 gt.poses.size()));
   if (est.poses.empty()) throw DataError("alignment: no associated poses");
+  check_alignment_geometry(positions(est), positions(gt), method);
   switch (method) {
     case Alignment::Se3: return umeyama(positions(est), positions(gt), false);
     case Alignment::Sim3: return umeyama(positions(est), positions(gt), true);

@@ -28,7 +28,18 @@ Sim3 umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::V
 /// Throws DataError when sizes differ, the set is empty, or the horizontal spread is zero.
 Sim3 align_position_yaw(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst);
 
-/// The alignment of `est` onto `gt`; both must be associated (same length, pose i ↔ pose i).
+/// Smallest ratio of the second to the first principal standard deviation of a trajectory's positions for an SE3 /
+/// Sim3 alignment: below it they lie on a line, and the rotation about it is undetermined.
+constexpr double kMinAlignmentSpreadRatio = 1e-3;
+
+/// Refuses (DataError naming the method and the numbers) an SE3 / Sim3 alignment that would be meaningless: fewer
+/// poses than give as many residual degrees of freedom as the fit has parameters (4 for SE3, 5 for Sim3), or
+/// positions of either trajectory on a line (kMinAlignmentSpreadRatio). Other methods pass.
+void check_alignment_geometry(const std::vector<Eigen::Vector3d>& est, const std::vector<Eigen::Vector3d>& gt,
+                              Alignment method);
+
+/// The alignment of `est` onto `gt`; both must be associated (same length, pose i ↔ pose i). SE3 and Sim3 pass
+/// check_alignment_geometry first.
 Sim3 compute_alignment(const Trajectory& est, const Trajectory& gt, Alignment method);
 
 /// est' = S ∘ est for every pose: p' = s R p + t, q' = q(R) ⊗ q. A pose covariance [δp δθ] is carried along:

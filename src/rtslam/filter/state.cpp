@@ -32,6 +32,16 @@ void StateOptions::validate() const {
     throw ConfigError(fmt::format("filter: capacities must be positive (tangent {}, rows {}, block {})",
                                   tangent_capacity, max_measurement_rows, max_block_tangent));
   }
+  // The covariance is tangent_capacity² doubles, allocated at once: bound it before std::bad_alloc (or an int
+  // overflow of the size) does. 10000 rows take 800 MB.
+  if (tangent_capacity > kMaxTangentCapacity || max_measurement_rows > kMaxTangentCapacity ||
+      max_block_tangent > kMaxTangentCapacity || ambient_capacity > 2 * kMaxTangentCapacity) {
+    throw ConfigError(fmt::format("filter: state capacity of {} covariance rows ({:.1f} GB) must be in [1, {}] "
+                                  "(config key slam/state_capacity; measurement rows {}, block {})",
+                                  tangent_capacity,
+                                  8e-9 * static_cast<double>(tangent_capacity) * static_cast<double>(tangent_capacity),
+                                  kMaxTangentCapacity, max_measurement_rows, max_block_tangent));
+  }
 }
 
 namespace {

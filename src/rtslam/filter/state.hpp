@@ -63,6 +63,8 @@ struct StateOptions {
   int max_measurement_rows = 64;   // rows of one batched correction
   int max_block_tangent = 32;      // largest block (robot + calibration states)
   int nullspace_dim = 0;           // columns of the tracked unobservable basis (0: no observability constraints)
+  static constexpr int kMaxTangentCapacity = 10000;  // a 10000-row covariance takes 800 MB
+  /// Throws ConfigError naming the bound: capacities positive, tangent capacity at most kMaxTangentCapacity.
   void validate() const;
 };
 

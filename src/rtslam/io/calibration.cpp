@@ -13,6 +13,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/io/source.hpp"
 #include "rtslam/io/text.hpp"
 
 namespace rtslam::io {
@@ -105,7 +106,9 @@ Eigen::Isometry3d to_isometry(const Eigen::Matrix4d& T) {
   return iso;
 }
 
-void check_intrinsics(const CameraCalibration& cam, const std::string& where) {
+}  // namespace
+
+void check_camera_calibration(const CameraCalibration& cam, const std::string& where) {
   require_bound(cam.width > 0 && cam.width <= kMaxImageSide, where, "width", cam.width,
                 fmt::format("in [1, {}]", kMaxImageSide));
   require_bound(cam.height > 0 && cam.height <= kMaxImageSide, where, "height", cam.height,
@@ -117,7 +120,30 @@ void check_intrinsics(const CameraCalibration& cam, const std::string& where) {
   require_bound(cam.fy > 0 && std::isfinite(cam.fy), where, "fy", cam.fy, "> 0");
   require_bound(std::isfinite(cam.cx), where, "cx", cam.cx, "finite");
   require_bound(std::isfinite(cam.cy), where, "cy", cam.cy, "finite");
-  require_bound(cam.rate_hz >= 0 && std::isfinite(cam.rate_hz), where, "rate_hz", cam.rate_hz, ">= 0");
+  // Plausibility: a focal length gives the field of view 2 atan(side / 2f) across the image; a lens outside
+  // [kMinFovDeg, kMaxFovDeg] is a wrong number (a unit slip, a swapped key), not a camera. Fisheye calibrations
+  // (equidistant) have pinhole-like focal lengths too (Kalibr's EuRoC fisheye: 190 px on 752 px, 126 deg).
+  const auto focal_bounds = [](int side) {
+    constexpr double kDeg = M_PI / 180.0;
+    return std::pair{side / (2.0 * std::tan(0.5 * CameraCalibration::kMaxFovDeg * kDeg)),
+                     side / (2.0 * std::tan(0.5 * CameraCalibration::kMinFovDeg * kDeg))};
+  };
+  const auto [fx_min, fx_max] = focal_bounds(cam.width);
+  const auto [fy_min, fy_max] = focal_bounds(cam.height);
+  const std::string fov = fmt::format("a field of view in [{:g}, {:g}] deg", CameraCalibration::kMinFovDeg,
+                                      CameraCalibration::kMaxFovDeg);
+  require_bound(cam.fx >= fx_min && cam.fx <= fx_max, where, "fx", cam.fx,
+                fmt::format("in [{:.4g}, {:.4g}] px for {} over the {} px width", fx_min, fx_max, fov, cam.width));
+  require_bound(cam.fy >= fy_min && cam.fy <= fy_max, where, "fy", cam.fy,
+                fmt::format("in [{:.4g}, {:.4g}] px for {} over the {} px height", fy_min, fy_max, fov, cam.height));
+  require_bound(cam.fx / cam.fy >= 0.25 && cam.fx / cam.fy <= 4.0, where, "fx / fy", cam.fx / cam.fy,
+                "in [0.25, 4] (pixel aspect ratio)");
+  require_bound(cam.cx >= 0.0 && cam.cx <= cam.width, where, "cx", cam.cx,
+                fmt::format("inside the image, in [0, {}] px", cam.width));
+  require_bound(cam.cy >= 0.0 && cam.cy <= cam.height, where, "cy", cam.cy,
+                fmt::format("inside the image, in [0, {}] px", cam.height));
+  require_bound(cam.rate_hz == 0.0 || (cam.rate_hz >= 1e-3 && cam.rate_hz <= 1e5), where, "rate_hz", cam.rate_hz,
+                "0 (unknown) or in [1e-3, 1e5] Hz");
   const int n = distortion_coefficient_count(cam.distortion);
   if (static_cast<int>(cam.distortion_coeffs.size()) != n) {
     throw ConfigError(fmt::format("{}: distortion model '{}' takes {} coefficients, got {}", where,
@@ -125,28 +151,44 @@ void check_intrinsics(const CameraCalibration& cam, const std::string& where) {
   }
   for (double k : cam.distortion_coeffs) {
     if (!std::isfinite(k)) throw ConfigError(fmt::format("{}: a distortion coefficient is not finite", where));
+    require_bound(std::abs(k) <= 1e3, where, "distortion coefficient", k, "in [-1e3, 1e3]");
   }
 }
+
+namespace {
+
+void check_intrinsics(const CameraCalibration& cam, const std::string& where) { check_camera_calibration(cam, where); }
 
 void check_imu(const ImuCalibration& imu, const std::string& where) {
   const auto positive = [](double x) { return x > 0 && std::isfinite(x); };
   const auto non_negative = [](double x) { return x >= 0 && std::isfinite(x); };
   require_bound(positive(imu.rate_hz), where, "rate_hz", imu.rate_hz, "> 0, finite");
+  require_bound(imu.rate_hz <= 1e5, where, "rate_hz", imu.rate_hz, "<= 1e5 Hz");
+  // Noise densities: the filter's own keys allow (0, 10); a calibration beyond is a unit slip.
   require_bound(positive(imu.gyro_noise_density), where, "gyroscope_noise_density", imu.gyro_noise_density,
                 "> 0, finite");
+  require_bound(imu.gyro_noise_density < 10.0, where, "gyroscope_noise_density", imu.gyro_noise_density, "< 10");
   require_bound(positive(imu.accel_noise_density), where, "accelerometer_noise_density", imu.accel_noise_density,
                 "> 0, finite");
+  require_bound(imu.accel_noise_density < 10.0, where, "accelerometer_noise_density", imu.accel_noise_density,
+                "< 10");
   require_bound(non_negative(imu.gyro_random_walk), where, "gyroscope_random_walk", imu.gyro_random_walk,
                 ">= 0, finite");
+  require_bound(imu.gyro_random_walk < 10.0, where, "gyroscope_random_walk", imu.gyro_random_walk, "< 10");
   require_bound(non_negative(imu.accel_random_walk), where, "accelerometer_random_walk", imu.accel_random_walk,
                 ">= 0, finite");
+  require_bound(imu.accel_random_walk < 10.0, where, "accelerometer_random_walk", imu.accel_random_walk, "< 10");
   if (imu.gyro_saturation) {
     require_bound(positive(*imu.gyro_saturation), where, "gyroscope_saturation", *imu.gyro_saturation,
                   "> 0, finite");
+    require_bound(*imu.gyro_saturation <= ImuRange::kMaxPlausibleGyro, where, "gyroscope_saturation",
+                  *imu.gyro_saturation, fmt::format("<= {:g} rad/s", ImuRange::kMaxPlausibleGyro));
   }
   if (imu.accel_saturation) {
     require_bound(positive(*imu.accel_saturation), where, "accelerometer_saturation", *imu.accel_saturation,
                   "> 0, finite");
+    require_bound(*imu.accel_saturation <= ImuRange::kMaxPlausibleAccel, where, "accelerometer_saturation",
+                  *imu.accel_saturation, fmt::format("<= {:g} m/s²", ImuRange::kMaxPlausibleAccel));
   }
 }
 

@@ -48,6 +48,10 @@ struct CameraCalibration {
   DistortionModel distortion = DistortionModel::None;
   std::vector<double> distortion_coeffs;  // distortion_coefficient_count(distortion) values
   Eigen::Isometry3d T_RS = Eigen::Isometry3d::Identity();
+
+  // The field of view (deg) a focal length may imply across the image (check_camera_calibration): outside it the
+  // number is a unit slip or a swapped key, not a lens.
+  static constexpr double kMinFovDeg = 0.5, kMaxFovDeg = 175.0;
 };
 
 struct ImuCalibration {
@@ -99,6 +103,13 @@ void write_rig_yaml(const std::string& path, const Rig& rig);
 /// Any of the above by content: .json -> MonoSLAM; YAML with `cameras:` -> rtslam; `cam0:` -> Kalibr camchain;
 /// `sensor_type: camera|imu` -> EuRoC sensor.yaml; `imu0:` or `accelerometer_noise_density` -> Kalibr imu.yaml.
 Rig load_calibration(const std::string& path);
+
+/// Throws ConfigError naming `where`, the key, the value and the bound unless the camera is plausible: image sides
+/// in [1, kMaxImageSide] and at most kMaxImagePixels pixels; fx, fy > 0 giving a field of view in
+/// [kMinFovDeg, kMaxFovDeg] across the image (fov = 2 atan(side / 2f)), fx / fy in [0.25, 4]; the principal point
+/// inside the image ([0, width] x [0, height]); rate_hz 0 (unknown) or in [1e-3, 1e5] Hz; the distortion model's
+/// number of coefficients, each finite and within ±1e3. Every loader runs it.
+void check_camera_calibration(const CameraCalibration& cam, const std::string& where);
 
 /// Validates the rotation part of T (named `key` in `where`) and warns when |t| > 0.5 m; throws ConfigError.
 void check_extrinsic(const Eigen::Matrix4d& T, const std::string& where, const std::string& key,

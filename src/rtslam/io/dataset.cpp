@@ -10,6 +10,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/core/yaml.hpp"
 #include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/io/text.hpp"
 #include "rtslam/io/trajectory_io.hpp"
@@ -75,6 +76,7 @@ StreamCheckOptions check_options(const DatasetOptions& o, const Rig& rig) {
   s.policy = o.bad_input;
   s.imu_rate_hz = rig.imu ? rig.imu->rate_hz : 0.0;
   s.max_imu_dropout = o.max_imu_dropout;
+  if (rig.imu) s.imu_range = ImuRange::from_full_scale(rig.imu->gyro_saturation, rig.imu->accel_saturation);
   return s;
 }
 
@@ -285,6 +287,8 @@ Dataset open_kitti(const fs::path& seq, const DatasetOptions& o) {
     if (first.empty()) throw IoError(fmt::format("{}: {}", files.front(), why));
     cam.width = first.cols;
     cam.height = first.rows;
+    check_camera_calibration(cam, fmt::format("{} ('P{}:' with the {}x{} px of {})", (seq / "calib.txt").string(),
+                                              cam_index, cam.width, cam.height, files.front()));
     // The nominal rate over the sequence (0 = unknown: one time, times out of order, or a span beyond int64 ns;
     // the order itself is checked by the stream).
     TimeNs span = 0;
@@ -375,8 +379,13 @@ Dataset open_images(const fs::path& root, const DatasetOptions& o) {
     }
     ds.rig.cameras.front().rate_hz = rate;
     for (size_t i = 0; i < files.size(); ++i) {
-      const auto t = static_cast<TimeNs>(std::llround(static_cast<double>(i) * 1e9 / rate));
-      images.push_back({t, 0, files[i], files[i]});
+      const auto t = from_seconds_checked(static_cast<double>(i) / rate);
+      if (!t) {
+        throw ConfigError(fmt::format("{}: image {} at {:g} Hz lies beyond the int64 nanosecond time range (rate_hz "
+                                      "must be in [{:g}, {:g}] Hz)",
+                                      files[i], i, rate, DatasetOptions::kMinRateHz, DatasetOptions::kMaxRateHz));
+      }
+      images.push_back({*t, 0, files[i], files[i]});
     }
   }
   auto src = std::make_unique<IndexedSource>(std::vector<ImuSample>{}, std::vector<int>{}, "", std::move(images),
@@ -450,7 +459,23 @@ std::string detect_dataset_kind(const std::string& path) {
                             path));
 }
 
+void DatasetOptions::validate() const {
+  const std::string w = "dataset options";
+  require_bound(rate_hz == 0.0 || (rate_hz >= kMinRateHz && rate_hz <= kMaxRateHz), w, "rate_hz (--rate)", rate_hz,
+                fmt::format("0 (from the data) or in [{:g}, {:g}] Hz", kMinRateHz, kMaxRateHz));
+  require_bound(max_imu_dropout >= 0 && max_imu_dropout <= kMaxImuDropout, w, "max_imu_dropout (--max-imu-dropout)",
+                max_imu_dropout, fmt::format("in [0, {}] samples", kMaxImuDropout));
+  require_bound(start_offset_s >= 0.0 && start_offset_s <= kMaxTimeSeconds, w, "start_offset_s (--start-at)",
+                start_offset_s, fmt::format("in [0, {:g}] s", kMaxTimeSeconds));
+  require_bound(duration_s >= 0.0 && duration_s <= kMaxTimeSeconds, w, "duration_s (--stop-after)", duration_s,
+                fmt::format("in [0, {:g}] s", kMaxTimeSeconds));
+  for (const int c : cameras) {
+    require_bound(c >= 0 && c <= kMaxCameraIndex, w, "cameras[]", c, fmt::format("in [0, {}]", kMaxCameraIndex));
+  }
+}
+
 Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
+  options.validate();
   std::string kind;
   std::string path = spec;
   const size_t colon = spec.find(':');

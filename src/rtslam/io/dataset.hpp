@@ -41,6 +41,13 @@ struct DatasetOptions {
   std::vector<std::string> image_topics;
   std::string imu_topic = "/imu0";
   bool bag_receive_time = false;
+
+  static constexpr double kMinRateHz = 1e-3, kMaxRateHz = 1e5;  // rate_hz, when given
+  static constexpr int kMaxImuDropout = 1'000'000;
+  static constexpr int kMaxCameraIndex = 15;
+  /// Throws ConfigError naming the option (and its CLI flag) and the bound: rate_hz 0 or in [1e-3, 1e5] Hz,
+  /// max_imu_dropout in [0, 1e6], start_offset_s and duration_s in [0, 9.2e9] s, cameras in [0, 15].
+  void validate() const;
 };
 
 struct Dataset {

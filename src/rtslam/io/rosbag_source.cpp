@@ -231,6 +231,10 @@ void RosbagSource::index(const BagReadSpec& spec) {
       reporter_.report(&SourceStats::non_finite, fmt::format("{}: non-finite IMU value", at));
       continue;
     }
+    if (const std::string beyond = imu_range_problem(s, spec.checks.imu_range); !beyond.empty()) {
+      reporter_.report(&SourceStats::imu_saturated, fmt::format("{}: {}", at, beyond));
+      continue;
+    }
     if (!imu_.empty()) {
       const TimeNs prev = imu_.back().t;
       if (s.t == prev) {
@@ -306,9 +310,9 @@ cv::Mat RosbagSource::decode(const ImageItem& item, std::string* error) const {
         *error = "empty compressed image";
         return {};
       }
-      const cv::Mat buffer(1, static_cast<int>(msg->data.size()), CV_8UC1, msg->data.data());
-      cv::Mat grey = cv::imdecode(buffer, cv::IMREAD_GRAYSCALE);
-      if (grey.empty()) *error = fmt::format("compressed image ('{}') cannot be decoded", msg->format);
+      std::string why;
+      cv::Mat grey = decode_grey_image(msg->data.data(), msg->data.size(), &why);
+      if (grey.empty()) *error = fmt::format("compressed image ('{}') {}", msg->format, why);
       return grey;
     }
     const auto msg = m.instantiate<sensor_msgs::Image>();
@@ -404,6 +408,9 @@ Dataset open_rosbag(const std::string& path, const DatasetOptions& o) {
   spec.checks.policy = o.bad_input;
   spec.checks.imu_rate_hz = ds.rig.imu ? ds.rig.imu->rate_hz : 0.0;
   spec.checks.max_imu_dropout = o.max_imu_dropout;
+  if (ds.rig.imu) {
+    spec.checks.imu_range = ImuRange::from_full_scale(ds.rig.imu->gyro_saturation, ds.rig.imu->accel_saturation);
+  }
   for (const auto& cam : ds.rig.cameras) spec.image_sizes.emplace_back(cam.width, cam.height);
   ds.source = std::make_unique<RosbagSource>(path, spec);
 

@@ -24,6 +24,34 @@ TimeNs time_of(const Measurement& m) {
   return std::visit([](const auto& x) { return x.t; }, m);
 }
 
+ImuRange ImuRange::from_full_scale(std::optional<double> gyro_saturation, std::optional<double> accel_saturation) {
+  ImuRange r;
+  if (gyro_saturation && *gyro_saturation > 0.0) r.gyro_rad_s = std::min(*gyro_saturation, kMaxPlausibleGyro);
+  if (accel_saturation && *accel_saturation > 0.0) r.accel_m_s2 = std::min(*accel_saturation, kMaxPlausibleAccel);
+  return r;
+}
+
+std::string imu_range_problem(const ImuSample& s, const ImuRange& range) {
+  // A reading at the full scale is within the range; the relative slack absorbs the rounding of a full scale
+  // converted between units (deg/s <-> rad/s) or written as text.
+  constexpr double kSlack = 1.0 + 1e-9;
+  constexpr const char* kAxis = "xyz";
+  for (int k = 0; k < 3; ++k) {
+    if (!(std::abs(s.gyro[k]) <= range.gyro_rad_s * kSlack)) {
+      return fmt::format("gyroscope w_{} = {:g} rad/s is beyond the sensor's range ±{:g} rad/s (saturated or corrupt)",
+                         kAxis[k], s.gyro[k], range.gyro_rad_s);
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (!(std::abs(s.accel[k]) <= range.accel_m_s2 * kSlack)) {
+      return fmt::format(
+          "accelerometer a_{} = {:g} m/s² is beyond the sensor's range ±{:g} m/s² (saturated or corrupt)", kAxis[k],
+          s.accel[k], range.accel_m_s2);
+    }
+  }
+  return {};
+}
+
 BadInputPolicy bad_input_policy_from_string(const std::string& s, const std::string& where) {
   if (s == "error") return BadInputPolicy::Error;
   if (s == "skip") return BadInputPolicy::Skip;
@@ -32,7 +60,7 @@ BadInputPolicy bad_input_policy_from_string(const std::string& s, const std::str
 
 std::size_t SourceStats::problems() const {
   return backwards_timestamps + duplicate_timestamps + imu_gaps + non_finite + malformed_lines + missing_images +
-         undecodable_images + wrong_size_images;
+         undecodable_images + wrong_size_images + imu_saturated + unsupported_images;
 }
 
 namespace {
@@ -53,6 +81,10 @@ constexpr Counter kCounters[] = {
     {&SourceStats::missing_images, "missing image", "missing images", "missing_images"},
     {&SourceStats::undecodable_images, "undecodable image", "undecodable images", "undecodable_images"},
     {&SourceStats::wrong_size_images, "wrong-size image", "wrong-size images", "wrong_size_images"},
+    {&SourceStats::imu_saturated, "IMU sample beyond the sensor's range", "IMU samples beyond the sensor's range",
+     "imu_saturated"},
+    {&SourceStats::unsupported_images, "image of an unsupported pixel type", "images of an unsupported pixel type",
+     "unsupported_images"},
 };
 
 }  // namespace
@@ -100,7 +132,38 @@ void BadInputReporter::report(std::size_t SourceStats::*counter, const std::stri
   }
 }
 
-cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why) {
+cv::Mat to_grey8(const cv::Mat& image, std::string* why, int* bits) {
+  const auto refuse = [why](std::string reason) {
+    if (why) *why = "unsupported: " + std::move(reason);
+    return cv::Mat();
+  };
+  if (image.empty()) return refuse("empty image");
+  const int depth = image.depth();
+  if (depth != CV_8U && depth != CV_16U) {
+    const char* kind = depth == CV_32F || depth == CV_64F ? "floating-point" : "signed-integer";
+    return refuse(fmt::format("{} pixels ({}-bit); give 8- or 16-bit unsigned images", kind, 8 * image.elemSize1()));
+  }
+  cv::Mat grey;
+  switch (image.channels()) {
+    case 1: grey = image; break;
+    case 2: cv::extractChannel(image, grey, 0); break;  // grey + alpha
+    case 3: cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY); break;
+    case 4: cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY); break;
+    default: return refuse(fmt::format("{} channels (1 to 4 accepted)", image.channels()));
+  }
+  if (depth == CV_8U) return grey;
+  double max_value = 0.0;
+  cv::minMaxLoc(grey, nullptr, &max_value);
+  int b = bits ? std::clamp(*bits, 8, 16) : 8;
+  while (b < 16 && max_value >= static_cast<double>(1 << b)) b += 2;
+  if (bits) *bits = b;
+  cv::Mat out;
+  grey.convertTo(out, CV_8U, 1.0 / static_cast<double>(1 << (b - 8)));
+  // convertTo rounds; a value of 2^b - 1 scaled to 255.99 saturates at 255 as it should.
+  return out;
+}
+
+cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why, int* bits) {
   const auto fail = [why](std::string reason) {
     if (why) *why = "cannot be decoded: " + std::move(reason);
     return cv::Mat();
@@ -110,20 +173,21 @@ cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::stri
   if (const std::string problem = image_header_problem(*header); !problem.empty()) return fail("it " + problem);
   if (size > static_cast<std::size_t>(std::numeric_limits<int>::max())) return fail("larger than 2 GB");
   // imdecode logs decoder errors (e.g. libpng "Read Error") itself; callers report the failure with the file name.
+  // Decoded at the file's own depth and channels (IMREAD_GRAYSCALE alone would cut 16-bit pixels to their high byte:
+  // a 16-bit file holding 8-bit values would be black), then converted by to_grey8.
   const cv::Mat bytes(1, static_cast<int>(size), CV_8UC1, const_cast<unsigned char*>(data));
   cv::Mat img;
   try {
-    img = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    img = cv::imdecode(bytes, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
   } catch (const cv::Exception&) {
     // imdecode throws (rather than returning an empty Mat) on some headers, e.g. a size beyond OpenCV's limits.
     return fail(fmt::format("{} header rejected by OpenCV", to_string(header->format)));
   }
   if (img.empty()) return fail(fmt::format("truncated or corrupt {}", to_string(header->format)));
-  if (img.type() != CV_8UC1) img.convertTo(img, CV_8UC1);
-  return img;
+  return to_grey8(img, why, bits);
 }
 
-cv::Mat read_grey_image(const std::string& path, std::string* why) {
+cv::Mat read_grey_image(const std::string& path, std::string* why, int* bits) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     if (why) *why = "cannot be opened";
@@ -137,7 +201,7 @@ cv::Mat read_grey_image(const std::string& path, std::string* why) {
     return {};
   }
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return decode_grey_image(bytes.data(), bytes.size(), why);
+  return decode_grey_image(bytes.data(), bytes.size(), why, bits);
 }
 
 namespace {
@@ -177,6 +241,11 @@ IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_li
       reporter_.report(&SourceStats::non_finite,
                        fmt::format("{}: non-finite IMU value at t = {} s", imu_location(imu_where, imu_lines, i, s.t),
                                    format_seconds(s.t)));
+      continue;
+    }
+    if (const std::string beyond = imu_range_problem(s, options.imu_range); !beyond.empty()) {
+      reporter_.report(&SourceStats::imu_saturated,
+                       fmt::format("{}: {}", imu_location(imu_where, imu_lines, i, s.t), beyond));
       continue;
     }
     if (!imu_.empty()) {
@@ -264,10 +333,13 @@ std::optional<Measurement> IndexedSource::next() {
     frame.camera = e.camera;
     frame.path = e.path;
     std::string why;
-    frame.image = read_grey_image(e.path, &why);
+    frame.image = read_grey_image(e.path, &why, &image_bits_);
     if (frame.image.empty()) {
       const bool missing = !fs::exists(e.path);
-      reporter_.report(missing ? &SourceStats::missing_images : &SourceStats::undecodable_images,
+      const bool unsupported = !missing && why.rfind("unsupported", 0) == 0;
+      reporter_.report(missing       ? &SourceStats::missing_images
+                       : unsupported ? &SourceStats::unsupported_images
+                                     : &SourceStats::undecodable_images,
                        fmt::format("{}: image {} {}", e.listed_at, e.path, missing ? "not found" : why), true);
       continue;
     }
@@ -312,8 +384,14 @@ std::optional<Measurement> WindowSource::next() {
     auto m = inner_->next();
     if (!m) return std::nullopt;
     const TimeNs t_first = time_of(*m);
-    const TimeNs t_start = t_first + from_seconds(start_offset_s_);
-    end_ = duration_s_ > 0.0 ? t_start + from_seconds(duration_s_) : std::numeric_limits<TimeNs>::max();
+    // Saturating: a window that reaches past the int64 time range ends (or starts) at its end.
+    constexpr TimeNs kEnd = std::numeric_limits<TimeNs>::max();
+    const auto offset = from_seconds_checked(start_offset_s_);
+    const auto start = offset ? add_checked(t_first, *offset) : std::nullopt;
+    if (!start) return std::nullopt;  // the window starts after any representable time: it is empty
+    const TimeNs t_start = *start;
+    const auto length = from_seconds_checked(duration_s_);
+    end_ = duration_s_ > 0.0 ? (length ? add_checked(t_start, *length).value_or(kEnd) : kEnd) : kEnd;
     if (time_of(*m) < t_start) {
       if (!inner_->seek(t_start)) {
         do {
@@ -353,16 +431,20 @@ std::optional<Measurement> VideoSource::next() {
     if (!capture_->read(raw) || raw.empty()) return std::nullopt;
     const std::size_t i = index_++;
     ImageFrame frame;
-    frame.t = t0_ + static_cast<TimeNs>(std::llround(static_cast<double>(i) * 1e9 / rate_hz_));
-    frame.path = fmt::format("{}#{}", path_, i);
-    if (raw.channels() == 3) {
-      cv::cvtColor(raw, frame.image, cv::COLOR_BGR2GRAY);
-    } else if (raw.channels() == 4) {
-      cv::cvtColor(raw, frame.image, cv::COLOR_BGRA2GRAY);
-    } else {
-      frame.image = raw;
+    const auto t = from_seconds_checked(static_cast<double>(i) / rate_hz_);
+    const auto t_frame = t ? add_checked(t0_, *t) : std::nullopt;
+    if (!t_frame) {
+      throw DataError(fmt::format("{}: frame {} at {:g} Hz lies beyond the int64 nanosecond time range", path_, i,
+                                  rate_hz_));
     }
-    if (frame.image.depth() != CV_8U) frame.image.convertTo(frame.image, CV_8U);
+    frame.t = *t_frame;
+    frame.path = fmt::format("{}#{}", path_, i);
+    std::string why;
+    frame.image = to_grey8(raw, &why, &image_bits_);
+    if (frame.image.empty()) {
+      reporter_.report(&SourceStats::unsupported_images, fmt::format("{}: frame {}", frame.path, why), true);
+      continue;
+    }
     if (expected_size_.width > 0 && expected_size_.height > 0 && frame.image.size() != expected_size_) {
       reporter_.report(&SourceStats::wrong_size_images,
                        fmt::format("{}: frame is {}x{}, the calibration says {}x{}", frame.path, frame.image.cols,

@@ -42,6 +42,25 @@ struct ImageFrame {
 
 using Measurement = std::variant<ImuSample, ImageFrame>;
 
+/// The range of an IMU's readings, per axis. A reading beyond it is saturated or corrupt: its true value is unknown,
+/// so it must never reach the integrator as if it were measured. Without a calibrated full scale the range is the
+/// plausibility limit of any IMU a SLAM rig carries (the widest MEMS parts: ±4000 deg/s = 70 rad/s, ±400 g), with
+/// margin: a reading beyond it is a corrupt value, not a motion.
+struct ImuRange {
+  static constexpr double kMaxPlausibleGyro = 200.0;     // rad/s (11,500 deg/s)
+  static constexpr double kMaxPlausibleAccel = 10000.0;  // m/s² (1020 g)
+  double gyro_rad_s = kMaxPlausibleGyro;                 // |ω| per axis
+  double accel_m_s2 = kMaxPlausibleAccel;                // |a| per axis
+  /// The full scales of a calibration (sensor.yaml gyroscope_saturation / accelerometer_saturation, or the config
+  /// keys imu/gyro_saturation / imu/accel_saturation), each capped by the plausibility limit; absent ones keep it.
+  static ImuRange from_full_scale(std::optional<double> gyro_saturation, std::optional<double> accel_saturation);
+};
+
+/// Empty when every axis of the sample lies within the range (a reading exactly at the full scale is within it: a
+/// saturated sensor reports its full scale); else what lies beyond, e.g. "accelerometer a_y = 1e+30 m/s² is beyond
+/// the sensor's range ±160 m/s² (saturated or corrupt)". Non-finite readings are beyond any range.
+std::string imu_range_problem(const ImuSample& s, const ImuRange& range);
+
 /// The timestamp of a measurement.
 TimeNs time_of(const Measurement& m);
 
@@ -63,6 +82,8 @@ struct SourceStats {
   std::size_t missing_images = 0;
   std::size_t undecodable_images = 0;
   std::size_t wrong_size_images = 0;
+  std::size_t imu_saturated = 0;  // IMU samples beyond the sensor's range (ImuRange): saturated or corrupt
+  std::size_t unsupported_images = 0;  // images of a pixel type that cannot be converted to 8-bit grey faithfully
   std::vector<std::string> messages;  // the first kMaxMessages problem messages
 
   static constexpr std::size_t kMaxMessages = 100;
@@ -132,6 +153,7 @@ struct StreamCheckOptions {
   double imu_rate_hz = 0.0;    // nominal IMU rate; 0 = take the median interval
   int max_imu_dropout = 3;     // more missing samples than this in a row is a gap
   bool check_files = true;     // check at open time that every image file exists
+  ImuRange imu_range;          // samples beyond it are bad input (counted as imu_saturated)
 };
 
 /// A stream built from in-memory IMU samples and a list of image files (decoded lazily). The constructor checks
@@ -163,6 +185,7 @@ class IndexedSource : public Source {
   std::vector<cv::Size> image_sizes_;
   std::vector<Item> order_;
   std::size_t pos_ = 0;
+  int image_bits_ = 8;  // significant bits of the 16-bit images seen so far (to_grey8)
 };
 
 /// A video file read with OpenCV. Frame i has t = t0 + i / rate (rate from the option, else the container's fps).
@@ -185,18 +208,27 @@ class VideoSource : public Source {
   BadInputReporter reporter_;
   std::unique_ptr<cv::VideoCapture> capture_;
   std::size_t index_ = 0;
+  int image_bits_ = 8;
   std::optional<std::size_t> frame_count_;
 };
 
-/// Decodes an encoded image to 8-bit grey with OpenCV's imdecode (colour converted with OpenCV's weights). Only the
-/// formats the readers accept are decoded — PNG, PNM (PBM/PGM/PPM), JPEG, BMP, TIFF — and only up to the size limits
-/// of image_header.hpp, checked on the header before anything is allocated. Returns an empty Mat if the bytes are
-/// not such an image or cannot be decoded; `why` (if given) then says which ("cannot be decoded: ...").
-/// This is the decode path of every image reader (read_grey_image).
-cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why = nullptr);
+/// Converts a decoded image to 8-bit grey (CV_8UC1). Channels: 1 (grey), 2 (grey + alpha: the grey), 3 (BGR) and 4
+/// (BGRA), colour with OpenCV's weights. Depth: 8-bit as is; 16-bit by its significant bits — the smallest of 8, 10,
+/// 12, 14 or 16 bits that holds the largest value, and at least `*bits` (the stream's depth so far, so that a dark
+/// frame of a 12-bit camera is not brightened) — shifted down to 8 (a 16-bit file holding 8-bit values keeps them;
+/// `*bits` is updated). Float and signed pixels are refused: an empty Mat, `why` says why ("unsupported: ...").
+cv::Mat to_grey8(const cv::Mat& image, std::string* why = nullptr, int* bits = nullptr);
+
+/// Decodes an encoded image to 8-bit grey with OpenCV's imdecode at its own depth, then to_grey8. Only the formats
+/// the readers accept are decoded — PNG, PNM (PBM/PGM/PPM), JPEG, BMP, TIFF — and only up to the size limits of
+/// image_header.hpp, checked on the header before anything is allocated. Returns an empty Mat if the bytes are not
+/// such an image, cannot be decoded or hold pixels to_grey8 refuses; `why` (if given) then says which ("cannot be
+/// decoded: ..." or "unsupported: ..."). This is the decode path of every image reader (read_grey_image).
+cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why = nullptr,
+                          int* bits = nullptr);
 
 /// Reads an image file and decodes it with decode_grey_image; an empty Mat if it is missing or cannot be decoded
 /// (`why` says which).
-cv::Mat read_grey_image(const std::string& path, std::string* why = nullptr);
+cv::Mat read_grey_image(const std::string& path, std::string* why = nullptr, int* bits = nullptr);
 
 }  // namespace rtslam::io

@@ -3,6 +3,9 @@
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/filter/state.hpp"
+#include "rtslam/io/dataset.hpp"
+#include "rtslam/pipeline/image_slam.hpp"
 
 namespace rtslam::pipeline {
 
@@ -11,6 +14,29 @@ const char* policy_name(strategies::MapPolicyOptions::Policy p) {
   return p == strategies::MapPolicyOptions::Policy::Global ? "global" : "visual_odometry";
 }
 }  // namespace
+
+void validate_slam_bounds(const ImageSlamOptions& o) {
+  const std::string w = "slam";
+  constexpr int kMaxCapacity = filter::StateOptions::kMaxTangentCapacity;
+  require_bound(o.state_capacity >= 100 && o.state_capacity <= kMaxCapacity, w, "state_capacity", o.state_capacity,
+                fmt::format("in [100, {}] covariance rows (a {}-row covariance takes {:.0f} MB)", kMaxCapacity,
+                            kMaxCapacity, 8e-6 * kMaxCapacity * kMaxCapacity));
+  require_bound(o.initial_velocity_std > 0.0 && o.initial_velocity_std <= 100.0, w, "initial_velocity_std",
+                o.initial_velocity_std, "in (0, 100] m/s, rad/s");
+  require_bound(o.max_frames >= 0 && o.max_frames <= 1'000'000'000, w, "max_frames", o.max_frames,
+                "in [0, 1e9] (0: all)");
+  require_bound(o.camera >= 0 && o.camera <= io::DatasetOptions::kMaxCameraIndex, w, "camera", o.camera,
+                fmt::format("in [0, {}]", io::DatasetOptions::kMaxCameraIndex));
+  require_bound(o.rate_hz == 0.0 || (o.rate_hz >= io::DatasetOptions::kMinRateHz &&
+                                     o.rate_hz <= io::DatasetOptions::kMaxRateHz),
+                w, "rate_hz", o.rate_hz,
+                fmt::format("0 (the dataset's) or in [{:g}, {:g}] Hz", io::DatasetOptions::kMinRateHz,
+                            io::DatasetOptions::kMaxRateHz));
+  require_bound(o.overlay_frame >= -1 && o.overlay_frame <= 1'000'000'000, w, "overlay_frame", o.overlay_frame,
+                "in [-1, 1e9] (-1: none)");
+  require_bound(o.sim_duration_s >= 0.0 && o.sim_duration_s <= 86400.0, "simulation", "duration", o.sim_duration_s,
+                "in [0, 86400] s (0: the preset's)");
+}
 
 void read_motion(YamlMap m, models::ConstantVelocityParams& motion) {
   m.get("sigma_v", motion.sigma_v);

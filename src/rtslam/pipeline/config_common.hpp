@@ -10,6 +10,13 @@
 
 namespace rtslam::pipeline {
 
+struct ImageSlamOptions;
+
+/// The upper bounds of the `slam` and `simulation` keys of ImageSlamOptions (its validate() checks the lower
+/// ones): ConfigError "slam: state_capacity = 100000 must be in [100, 10000] covariance rows". Called from
+/// ImageSlamOptions::validate().
+void validate_slam_bounds(const ImageSlamOptions& o);
+
 /// motion: {sigma_v, sigma_w}
 void read_motion(YamlMap section, models::ConstantVelocityParams& motion);
 YAML::Node motion_to_yaml(const models::ConstantVelocityParams& motion);

@@ -33,8 +33,10 @@ void ImageSlamOptions::validate() const {
   require_bound(state_capacity >= map.map_size, where, "state_capacity", state_capacity, ">= map_manager/map_size");
   require_bound(max_frames >= 0, where, "max_frames", max_frames, ">= 0");
   require_bound(camera >= 0, where, "camera", camera, ">= 0");
+  validate_slam_bounds(*this);
   for (std::size_t i = 0; i < cameras.size(); ++i) {
-    require_bound(cameras[i] >= 0 && cameras[i] < 64, where, "cameras", cameras[i], "in [0, 64)");
+    require_bound(cameras[i] >= 0 && cameras[i] <= io::DatasetOptions::kMaxCameraIndex, where, "cameras", cameras[i],
+                  fmt::format("in [0, {}]", io::DatasetOptions::kMaxCameraIndex));
     for (std::size_t j = 0; j < i; ++j) {
       if (cameras[j] == cameras[i]) throw ConfigError(fmt::format("slam/cameras lists camera {} twice", cameras[i]));
     }
@@ -204,6 +206,9 @@ struct ImageSlam::Impl final : slam::Observer {
       else if (rig.imu && rig.imu->gyro_saturation) gyro_full_scale = *rig.imu->gyro_saturation;
       if (o.imu.accel_saturation) accel_full_scale = *o.imu.accel_saturation;
       else if (rig.imu && rig.imu->accel_saturation) accel_full_scale = *rig.imu->accel_saturation;
+      imu_range = io::ImuRange::from_full_scale(
+          gyro_full_scale > 0.0 ? std::optional<double>(gyro_full_scale) : std::nullopt,
+          accel_full_scale > 0.0 ? std::optional<double>(accel_full_scale) : std::nullopt);
     }
     camera = &built.cameras.front();
     by_rig_index.assign(rig.cameras.size(), nullptr);
@@ -211,6 +216,7 @@ struct ImageSlam::Impl final : slam::Observer {
     held.reserve(built.cameras.size());
     held_paths.resize(built.cameras.size());
     result.inertial = inertial;
+    result.cameras = static_cast<int>(built.cameras.size());
     const auto total = source.image_count();
     n_total = total ? static_cast<int>(*total / built.cameras.size()) : 0;  // progress counts the first camera's
     // One entry per image: reserved when the count is known, so that the frame loop does not reallocate them.
@@ -309,6 +315,13 @@ struct ImageSlam::Impl final : slam::Observer {
       ++result.imu_samples;
       if (gyro_full_scale > 0.0 && imu->gyro.cwiseAbs().maxCoeff() >= gyro_full_scale) ++result.imu_gyro_saturated;
       if (accel_full_scale > 0.0 && imu->accel.cwiseAbs().maxCoeff() >= accel_full_scale) ++result.imu_accel_saturated;
+      // The readers apply the calibration's range; the imu/*_saturation keys may narrow it. A sample beyond the
+      // sensor's range is counted above and never integrated.
+      if (const std::string beyond = io::imu_range_problem(*imu, imu_range); !beyond.empty()) {
+        logger("slam")->warn("t = {:.3f} s: IMU sample not integrated: {}", to_seconds(imu->t), beyond);
+        return true;
+      }
+      last_imu_t = imu->t;
       auto d = system.spare<slam::ImuData>();
       d->t = imu->t;
       d->sensor_id = built.input_id;
@@ -345,6 +358,12 @@ struct ImageSlam::Impl final : slam::Observer {
     const slam::Robot& robot = *built.robot;
     const slam::System::RobotCounts& counts = system.counts(0);
     if (!counts.started) {
+      if (inertial && system.pending() > 0 && !stopped) {
+        throw DataError(fmt::format("dataset '{}': the IMU stream ends before the images (last IMU sample at {:.3f} s, "
+                                    "{} image(s) from {:.3f} s never covered): the filter could not start",
+                                    name, last_imu_t ? to_seconds(*last_imu_t) : 0.0, system.pending(),
+                                    to_seconds(system.first_pending().value_or(0))));
+      }
       throw DataError(fmt::format("dataset '{}' has no image of camera {} that the filter could start from{}", name,
                                   o.camera, inertial ? " (are the images covered by IMU data?)" : ""));
     }
@@ -416,6 +435,8 @@ struct ImageSlam::Impl final : slam::Observer {
   bool inertial = false;
   TimeNs t_d = 0;  // t_imu = t_cam + t_d
   double gyro_full_scale = 0.0, accel_full_scale = 0.0;  // 0: unknown
+  io::ImuRange imu_range;
+  std::optional<TimeNs> last_imu_t;
   ImageSlamResult result;
   std::function<void(const ImageSlamFrame&)> observer;
   std::function<void(int, int)> progress;

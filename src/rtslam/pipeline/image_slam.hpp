@@ -111,6 +111,7 @@ struct ImageSlamResult {
   int resets = 0;
   int frame_gaps = 0;  // gaps between processed images longer than health/max_frame_gap
   slam::Health final_health = slam::Health::Ok;
+  int cameras = 1;  // cameras on the robot (several: the scale is known from their baseline)
   // Inertial runs.
   bool inertial = false;
   std::string inertial_start;                   // InertialStart::describe() of the initialization

@@ -1,10 +1,12 @@
 #include "rtslam/pipeline/inertial_init.hpp"
 
 #include <cmath>
+#include <tuple>
 
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/io/source.hpp"
 #include "rtslam/math/rotation.hpp"
 
 namespace rtslam::pipeline {
@@ -19,19 +21,23 @@ void InertialOptions::validate() const {
   require_bound(gravity_magnitude >= 9.7 && gravity_magnitude <= 9.9, w, "gravity_magnitude", gravity_magnitude,
                 "in [9.7, 9.9] m/s² (Earth)");
   require_bound(init_window_s > 0.0 && init_window_s <= 10.0, w, "init_window", init_window_s, "in (0, 10] s");
-  require_bound(standstill_max_gyro_std > 0.0, w, "standstill_max_gyro_std", standstill_max_gyro_std, "> 0");
-  require_bound(standstill_max_accel_std > 0.0, w, "standstill_max_accel_std", standstill_max_accel_std, "> 0");
-  for (const auto& [key, v] : {std::pair{"velocity_std_standstill", velocity_std_standstill},
-                               std::pair{"velocity_std_motion", velocity_std_motion},
-                               std::pair{"accel_bias_std", accel_bias_std}, std::pair{"gyro_bias_std", gyro_bias_std},
-                               std::pair{"gravity_std_standstill", gravity_std_standstill},
-                               std::pair{"gravity_std_motion", gravity_std_motion},
-                               std::pair{"gravity_magnitude_std", gravity_magnitude_std},
-                               std::pair{"noise_scale", noise_scale},
-                               std::pair{"random_walk_scale", random_walk_scale},
-                               std::pair{"extrinsics_std_m", extrinsics_std_m},
-                               std::pair{"extrinsics_std_deg", extrinsics_std_deg}}) {
-    require_bound(v > 0.0, w, key, v, "> 0");
+  require_bound(standstill_max_gyro_std > 0.0 && standstill_max_gyro_std <= 10.0, w, "standstill_max_gyro_std",
+                standstill_max_gyro_std, "in (0, 10] rad/s");
+  require_bound(standstill_max_accel_std > 0.0 && standstill_max_accel_std <= 100.0, w, "standstill_max_accel_std",
+                standstill_max_accel_std, "in (0, 100] m/s²");
+  // Priors and scales: positive, and below values no start or IMU could mean (a unit slip otherwise).
+  for (const auto& [key, v, hi, unit] :
+       {std::tuple{"velocity_std_standstill", velocity_std_standstill, 100.0, "m/s"},
+        std::tuple{"velocity_std_motion", velocity_std_motion, 100.0, "m/s"},
+        std::tuple{"accel_bias_std", accel_bias_std, 10.0, "m/s²"},
+        std::tuple{"gyro_bias_std", gyro_bias_std, 1.0, "rad/s"},
+        std::tuple{"gravity_std_standstill", gravity_std_standstill, 10.0, "m/s²"},
+        std::tuple{"gravity_std_motion", gravity_std_motion, 10.0, "m/s²"},
+        std::tuple{"gravity_magnitude_std", gravity_magnitude_std, 1.0, "m/s²"},
+        std::tuple{"noise_scale", noise_scale, 1000.0, ""}, std::tuple{"random_walk_scale", random_walk_scale, 1000.0, ""},
+        std::tuple{"extrinsics_std_m", extrinsics_std_m, 1.0, "m"},
+        std::tuple{"extrinsics_std_deg", extrinsics_std_deg, 90.0, "deg"}}) {
+    require_bound(v > 0.0 && v <= hi, w, key, v, fmt::format("in (0, {:g}]{}{}", hi, *unit ? " " : "", unit));
   }
   for (const auto& [key, v] : {std::pair{"accelerometer_noise_density", accelerometer_noise_density},
                                std::pair{"gyroscope_noise_density", gyroscope_noise_density},
@@ -42,8 +48,15 @@ void InertialOptions::validate() const {
   vi_init.validate();
   calibration_check.validate();
   if (time_offset_s) require_bound(std::abs(*time_offset_s) < 1.0, w, "time_offset", *time_offset_s, "within ±1 s");
-  if (gyro_saturation) require_bound(*gyro_saturation > 0.0, w, "gyro_saturation", *gyro_saturation, "> 0 rad/s");
-  if (accel_saturation) require_bound(*accel_saturation > 0.0, w, "accel_saturation", *accel_saturation, "> 0 m/s²");
+  if (gyro_saturation) {
+    require_bound(*gyro_saturation > 0.0 && *gyro_saturation <= io::ImuRange::kMaxPlausibleGyro, w, "gyro_saturation",
+                  *gyro_saturation, fmt::format("in (0, {:g}] rad/s", io::ImuRange::kMaxPlausibleGyro));
+  }
+  if (accel_saturation) {
+    require_bound(*accel_saturation > 0.0 && *accel_saturation <= io::ImuRange::kMaxPlausibleAccel, w,
+                  "accel_saturation", *accel_saturation,
+                  fmt::format("in (0, {:g}] m/s²", io::ImuRange::kMaxPlausibleAccel));
+  }
 }
 
 void ViInitOptions::validate() const {

@@ -1,14 +1,17 @@
 #include "rtslam/pipeline/known_landmarks.hpp"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 
+#include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/yaml.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/strategies/active_search.hpp"
@@ -25,11 +28,29 @@ Eigen::VectorXd json_vector(const nlohmann::json& j, const std::string& where, i
   for (int i = 0; i < n; ++i) {
     if (!j[static_cast<size_t>(i)].is_number()) throw ConfigError(fmt::format("{}[{}]: not a number", where, i));
     v[i] = j[static_cast<size_t>(i)].get<double>();
+    if (!std::isfinite(v[i])) throw ConfigError(fmt::format("{}[{}] = {} must be finite", where, i, v[i]));
   }
   return v;
 }
 
 }  // namespace
+
+void check_initial_state(const Eigen::VectorXd& x, const Eigen::MatrixXd& P, int q_index, const std::string& where) {
+  if (!x.allFinite()) throw ConfigError(fmt::format("{}: xv holds a non-finite number", where));
+  const double qn = x.segment<4>(q_index).norm();
+  require_bound(std::abs(qn - 1.0) <= kUnitQuaternionTolerance, where,
+                fmt::format("|q| (xv[{}..{}], w x y z)", q_index, q_index + 3), qn,
+                fmt::format("1 within {:g} (a unit quaternion)", kUnitQuaternionTolerance));
+  if (P.rows() != P.cols() || !P.allFinite()) throw ConfigError(fmt::format("{}: pxx must be square and finite", where));
+  const double scale = std::max(P.cwiseAbs().maxCoeff(), 1e-300);
+  const double asym = (P - P.transpose()).cwiseAbs().maxCoeff();
+  require_bound(asym <= 1e-9 * scale, where, "max |pxx - pxxᵀ|", asym, "<= 1e-9 max |pxx| (symmetric)");
+  // Positive semi-definite: a zero variance is a known value (the gauge), a negative eigenvalue is an error.
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly);
+  const double lowest = eig.eigenvalues().minCoeff();
+  require_bound(lowest >= -1e-9 * scale, where, "smallest eigenvalue of pxx", lowest,
+                ">= 0 (a covariance is positive semi-definite)");
+}
 
 KnownLandmarkSet load_known_landmarks(const std::string& folder, const std::string& convention) {
   if (convention != "scenelib" && convention != "robot") {
@@ -51,6 +72,7 @@ KnownLandmarkSet load_known_landmarks(const std::string& folder, const std::stri
   Eigen::MatrixXd pxx(13, 13);
   if (!j["pxx"].is_array() || j["pxx"].size() != 13) throw ConfigError(fmt::format("{}: pxx must be 13x13", path));
   for (int r = 0; r < 13; ++r) pxx.row(r) = json_vector(j["pxx"][static_cast<size_t>(r)], path + ": pxx row", 13);
+  check_initial_state(xv, pxx, 3, path);
 
   // Frame change of the camera: S_ours = S_file · F (F = diag(−1, −1, 1) for SceneLib, a rotation by π about z).
   const Eigen::Matrix3d F = convention == "scenelib" ? Eigen::Vector3d(-1, -1, 1).asDiagonal().toDenseMatrix()

@@ -29,7 +29,15 @@ struct KnownLandmarkSet {
   std::vector<vision::Image> patches;
 };
 
-/// Loads a MonoSLAM-style known-landmark folder; `convention` is "robot" or "scenelib". Throws IoError /
+/// |q| may differ from 1 by this much in an initial state (then it is normalized); more is not a rotation.
+constexpr double kUnitQuaternionTolerance = 1e-3;
+
+/// Plausibility of an initial state read from `where`: x finite, its quaternion x[q_index..q_index+3] of norm 1 within
+/// kUnitQuaternionTolerance, P square, finite, symmetric and positive semi-definite (zero variances are the gauge).
+/// Throws ConfigError naming `where`, the quantity, its value and the bound.
+void check_initial_state(const Eigen::VectorXd& x, const Eigen::MatrixXd& P, int q_index, const std::string& where);
+
+/// Loads a MonoSLAM-style known-landmark folder; the initial state is checked by check_initial_state; `convention` is "robot" or "scenelib". Throws IoError /
 /// ConfigError naming the file and the problem.
 KnownLandmarkSet load_known_landmarks(const std::string& folder, const std::string& convention);
 

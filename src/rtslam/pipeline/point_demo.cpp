@@ -6,6 +6,8 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/filter/state.hpp"
 #include "rtslam/sim/trajectory.hpp"
 #include "rtslam/sim/world.hpp"
 #include "rtslam/pipeline/builder.hpp"
@@ -50,11 +52,16 @@ strategies::MapPolicyOptions demo_map_defaults() {
 }
 
 void PointDemoOptions::validate() const {
-  if (!(duration_s > 0.0) || !(rate_hz > 0.0) || n_points < 10 || !(sigma_px >= 0.0) ||
-      !(initial_velocity_std > 0.0)) {
-    throw ConfigError(fmt::format("demo: duration {} s, rate {} Hz, points {}, sigma {} px must be positive (>= 10 points)",
-                                  duration_s, rate_hz, n_points, sigma_px));
-  }
+  const std::string w = "demo";
+  require_bound(duration_s > 0.0 && duration_s <= 3600.0, w, "duration_s", duration_s, "in (0, 3600] s");
+  require_bound(rate_hz > 0.0 && rate_hz <= 1000.0, w, "rate_hz", rate_hz, "in (0, 1000] Hz");
+  require_bound(n_points >= 10 && n_points <= 100000, w, "n_points", n_points, "in [10, 100000]");
+  require_bound(sigma_px >= 0.0 && sigma_px <= 100.0, w, "sigma_px", sigma_px, "in [0, 100] px");
+  require_bound(initial_velocity_std > 0.0 && initial_velocity_std <= 100.0, w, "initial_velocity_std",
+                initial_velocity_std, "in (0, 100]");
+  require_bound(state_capacity >= 100 && state_capacity <= filter::StateOptions::kMaxTangentCapacity, w,
+                "state_capacity", state_capacity,
+                fmt::format("in [100, {}] covariance rows", filter::StateOptions::kMaxTangentCapacity));
   if (!((room_max - room_min).minCoeff() > 0.5)) throw ConfigError("demo: the room must be larger than 0.5 m");
   motion.validate();
   association.validate();

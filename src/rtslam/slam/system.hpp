@@ -111,6 +111,10 @@ class System {
   long steps() const { return frame_; }
   bool finished() const { return options_.max_steps > 0 && frame_ >= options_.max_steps; }
   std::size_t pending() const { return pending_.size(); }
+  /// The time of the oldest datum waiting for inputs.
+  std::optional<TimeNs> first_pending() const {
+    return pending_.empty() ? std::nullopt : std::optional<TimeNs>(pending_.front()->t);
+  }
   Map& map() { return map_; }
   const Map& map() const { return map_; }
 

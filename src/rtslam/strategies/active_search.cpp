@@ -21,34 +21,36 @@ const PointDescriptor* point_descriptor(const slam::Landmark& lmk) {
   return p ? p->get() : nullptr;
 }
 
-void ActiveSearchOptions::validate() const {
-  const std::string where = "active search";
-  require_bound(sigma_px > 0.0, where, "sigma_px", sigma_px, "> 0");
-  require_bound(n_sigma > 0.0, where, "n_sigma", n_sigma, "> 0");
+void ActiveSearchOptions::validate(const std::string& where) const {
+  require_bound(sigma_px > 0.0 && sigma_px <= 100.0, where, "sigma_px", sigma_px, "in (0, 100] px");
+  require_bound(n_sigma > 0.0 && n_sigma <= 10.0, where, "n_sigma", n_sigma, "in (0, 10]");
   require_bound(max_updates >= 0 && max_updates <= 32 * gain_recomputations, where, "max_updates", max_updates,
                 "in [0, 32 * gain_recomputations]");
   require_bound(max_updates_ransac >= 0 && max_updates_ransac <= 32 && max_updates_ransac <= max_updates, where,
                 "max_updates_ransac", max_updates_ransac, "in [0, min(32, max_updates)]");
-  require_bound(ransac_ntries >= 0, where, "ransac_ntries", ransac_ntries, ">= 0");
-  require_bound(ransac_low_innov_px >= 0.0, where, "ransac_low_innov_px", ransac_low_innov_px, ">= 0");
-  require_bound(gain_recomputations >= 1, where, "gain_recomputations", gain_recomputations, ">= 1");
+  require_bound(ransac_ntries >= 0 && ransac_ntries <= 1000, where, "ransac_ntries", ransac_ntries, "in [0, 1000]");
+  require_bound(ransac_low_innov_px >= 0.0 && ransac_low_innov_px <= 100.0, where, "ransac_low_innov_px",
+                ransac_low_innov_px, "in [0, 100] px");
+  require_bound(gain_recomputations >= 1 && gain_recomputations <= 100, where, "gain_recomputations",
+                gain_recomputations, "in [1, 100]");
   require_bound(iterations >= 1 && iterations <= 20, where, "iterations", iterations, "in [1, 20]");
   require_bound(iteration_tolerance > 0.0 && iteration_tolerance < 1.0, where, "iteration_tolerance",
                 iteration_tolerance, "in (0, 1)");
-  require_bound(max_inits >= 0, where, "max_inits", max_inits, ">= 0");
-  require_bound(max_search_size_px2 > 0.0, where, "max_search_size_px2", max_search_size_px2, "> 0");
-  require_bound(margin_px >= 0.0, where, "margin_px", margin_px, ">= 0");
+  require_bound(max_inits >= 0 && max_inits <= 1000, where, "max_inits", max_inits, "in [0, 1000]");
+  require_bound(max_search_size_px2 > 0.0 && max_search_size_px2 <= 1e8, where, "max_search_size_px2",
+                max_search_size_px2, "in (0, 1e8] px²");
+  require_bound(margin_px >= 0.0 && margin_px <= 1000.0, where, "margin_px", margin_px, "in [0, 1000] px");
   require_bound(init_patch_size >= zncc.patch_size && init_patch_size % 2 == 1 && init_patch_size <= 101, where,
                 "init_patch_size", init_patch_size, "odd, >= zncc.patch_size and <= 101");
-  grid.validate();
-  prior.validate();
+  grid.validate(where + "/grid");
+  prior.validate(where);
   if (depth_prior != "fixed" && depth_prior != "scene") {
     throw ConfigError(fmt::format("{}: depth_prior = '{}' must be fixed or scene", where, depth_prior));
   }
   require_bound(scene_prior_min_points >= 1 && scene_prior_min_points <= 1000, where, "scene_prior_min_points",
                 scene_prior_min_points, "in [1, 1000]");
-  harris.validate();
-  zncc.validate();
+  harris.validate(where + "/harris");
+  zncc.validate(where + "/zncc");
 }
 
 ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
@@ -87,7 +89,7 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
     o.zncc = vision::ZnccOptions::from_yaml(z);
   }
   map.finish();
-  o.validate();
+  o.validate(map.where());
   return o;
 }
 

@@ -83,7 +83,8 @@ struct ActiveSearchOptions {
   int scene_prior_min_points = 3;
   vision::HarrisOptions harris;
   vision::ZnccOptions zncc;           // MATCH_TH 0.90, patch 15
-  void validate() const;
+  /// `where` names the options in messages (their config section, e.g. "search/zncc", or the file and section).
+  void validate(const std::string& where = "search") const;
   /// Keys: sigma_px, second_order_depth, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_low_innov_px,
   /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min,
   /// grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors; validates.

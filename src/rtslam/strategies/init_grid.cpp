@@ -6,18 +6,27 @@
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/yaml.hpp"
 
 namespace rtslam::strategies {
 
-void InitGridOptions::validate() const {
-  if (cells_x < 1 || cells_y < 1 || margin_px < 0.0) {
-    throw ConfigError(fmt::format("init grid: cells {}x{} and margin {} must be >= 1, >= 1, >= 0", cells_x, cells_y,
-                                  margin_px));
-  }
+void InitGridOptions::validate(const std::string& where) const {
+  require_bound(cells_x >= 1 && cells_x <= kMaxCells, where, "cells_x", cells_x, fmt::format("in [1, {}]", kMaxCells));
+  require_bound(cells_y >= 1 && cells_y <= kMaxCells, where, "cells_y", cells_y, fmt::format("in [1, {}]", kMaxCells));
+  require_bound(margin_px >= 0.0 && margin_px <= 1000.0, where, "margin_px", margin_px, "in [0, 1000] px");
 }
 
 InitGrid::InitGrid(int width, int height, InitGridOptions options) : width_(width), height_(height), opt_(options) {
-  opt_.validate();
+  opt_.validate("search/grid");
+  // Cells narrower than a few pixels hold no corner of their own (and a grid of tiny cells costs time per frame).
+  const double cell_w = (width_ - 2.0 * opt_.margin_px) / opt_.cells_x;
+  const double cell_h = (height_ - 2.0 * opt_.margin_px) / opt_.cells_y;
+  if (!(cell_w >= InitGridOptions::kMinCellPx && cell_h >= InitGridOptions::kMinCellPx)) {
+    throw ConfigError(fmt::format("search/grid: cells_x = {}, cells_y = {} and margin_px = {} give cells of {:.1f}x{:.1f} "
+                                  "px on the {}x{} px image: they must be at least {} px",
+                                  opt_.cells_x, opt_.cells_y, opt_.margin_px, cell_w, cell_h, width_, height_,
+                                  InitGridOptions::kMinCellPx));
+  }
   // The moving grid has one extra row/column of cells so the shifted grid still covers the image.
   cell_w_ = (width_ - 2.0 * opt_.margin_px) / opt_.cells_x;
   cell_h_ = (height_ - 2.0 * opt_.margin_px) / opt_.cells_y;

@@ -1,6 +1,7 @@
 #pragma once
 // RT-SLAM's randomly moving grid for feature initialization: a fixed grid of cells (6x4 by default) shifted by a
 // random offset every frame; new features are sought only in cells that hold no landmark observation.
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -13,11 +14,15 @@ struct InitGridOptions {
   int cells_x = 6;
   int cells_y = 4;
   double margin_px = 8.0;  // cells are kept this far from the image border
-  void validate() const;
+  static constexpr int kMaxCells = 64;          // cells_x, cells_y in [1, kMaxCells]
+  static constexpr double kMinCellPx = 4.0;     // InitGrid refuses smaller cells on its image
+  /// `where` names the options in messages (their config section, e.g. "search/zncc", or the file and section).
+  void validate(const std::string& where = "init grid") const;
 };
 
 class InitGrid {
  public:
+  /// Throws ConfigError (naming search/grid) when the options or the cells they give on this image are out of bounds.
   InitGrid(int width, int height, InitGridOptions options);
   /// New random offset (in [0, cell size)) and all cells empty.
   void reset(Rng& rng);

@@ -7,20 +7,23 @@
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/yaml.hpp"
 #include "rtslam/slam/landmark_init.hpp"
 #include "rtslam/slam/observation.hpp"
 
 namespace rtslam::strategies {
 
 void KnownAssociationOptions::validate() const {
-  if (!(sigma_px > 0.0) || !(n_sigma > 0.0) || max_updates < 0 || max_inits < 0 || margin_px < 0.0 ||
-      gain_recomputations < 1) {
-    throw ConfigError(fmt::format(
-        "known association: sigma_px {} and n_sigma {} must be > 0, max_updates {} / max_inits {} / margin {} >= 0",
-        sigma_px, n_sigma, max_updates, max_inits, margin_px));
-  }
-  grid.validate();
-  prior.validate();
+  const std::string w = "association";
+  require_bound(sigma_px > 0.0 && sigma_px <= 100.0, w, "sigma_px", sigma_px, "in (0, 100] px");
+  require_bound(n_sigma > 0.0 && n_sigma <= 10.0, w, "n_sigma", n_sigma, "in (0, 10]");
+  require_bound(max_updates >= 0 && max_updates <= 10000, w, "max_updates", max_updates, "in [0, 10000]");
+  require_bound(max_inits >= 0 && max_inits <= 1000, w, "max_inits", max_inits, "in [0, 1000]");
+  require_bound(gain_recomputations >= 1 && gain_recomputations <= 100, w, "gain_recomputations", gain_recomputations,
+                "in [1, 100]");
+  require_bound(margin_px >= 0.0 && margin_px <= 1000.0, w, "margin_px", margin_px, "in [0, 1000] px");
+  grid.validate(w + "/grid");
+  prior.validate(w);
 }
 
 KnownAssociationDataManager::KnownAssociationDataManager(KnownAssociationOptions options,

@@ -7,27 +7,32 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/core/yaml.hpp"
 #include "rtslam/slam/landmark_init.hpp"
 
 namespace rtslam::strategies {
 
 void MapPolicyOptions::validate() const {
-  if (map_size <= 0) throw ConfigError(fmt::format("map_manager: map_size = {} must be > 0", map_size));
-  if (!(reparam_threshold >= 0.0)) {
-    throw ConfigError(fmt::format("map_manager: reparam_threshold = {} must be >= 0", reparam_threshold));
-  }
-  if (!(min_match_ratio >= 0.0 && min_match_ratio <= 1.0) || !(min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0)) {
-    throw ConfigError("map_manager: min_match_ratio and min_inlier_ratio must be in [0, 1]");
-  }
-  if (forget_after_frames < 1 || forget_unseen_after_frames < 0 || min_searches_to_judge < 1) {
-    throw ConfigError("map_manager: forget_after_frames and min_searches_to_judge must be >= 1");
-  }
-  if (evict_min_unseen_frames < 1) {
-    throw ConfigError(fmt::format("map_manager: evict_min_unseen_frames = {} must be >= 1", evict_min_unseen_frames));
-  }
-  if (evict_rows < 0 || evict_rows > map_size) {
-    throw ConfigError(fmt::format("map_manager: evict_rows = {} must be in [0, map_size = {}]", evict_rows, map_size));
-  }
+  const std::string w = "map_manager";
+  require_bound(map_size > 0 && map_size <= kMaxMapSize, w, "map_size", map_size,
+                fmt::format("in [1, {}] covariance rows", kMaxMapSize));
+  require_bound(reparam_threshold >= 0.0 && reparam_threshold <= 10.0, w, "reparam_threshold", reparam_threshold,
+                "in [0, 10]");
+  require_bound(min_match_ratio >= 0.0 && min_match_ratio <= 1.0, w, "min_match_ratio", min_match_ratio, "in [0, 1]");
+  require_bound(min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0, w, "min_inlier_ratio", min_inlier_ratio,
+                "in [0, 1]");
+  constexpr int kMaxFrames = 1'000'000;
+  const std::string frames = fmt::format("in [1, {}] frames", kMaxFrames);
+  require_bound(min_searches_to_judge >= 1 && min_searches_to_judge <= kMaxFrames, w, "min_searches_to_judge",
+                min_searches_to_judge, frames);
+  require_bound(forget_after_frames >= 1 && forget_after_frames <= kMaxFrames, w, "forget_after_frames",
+                forget_after_frames, frames);
+  require_bound(forget_unseen_after_frames >= 0 && forget_unseen_after_frames <= kMaxFrames, w,
+                "forget_unseen_after_frames", forget_unseen_after_frames,
+                fmt::format("in [0, {}] frames (0: never)", kMaxFrames));
+  require_bound(evict_min_unseen_frames >= 1 && evict_min_unseen_frames <= kMaxFrames, w, "evict_min_unseen_frames",
+                evict_min_unseen_frames, frames);
+  require_bound(evict_rows >= 0 && evict_rows <= map_size, w, "evict_rows", evict_rows, "in [0, map_size]");
 }
 
 PolicyMapManager::PolicyMapManager(MapPolicyOptions options) : opt_(options) {

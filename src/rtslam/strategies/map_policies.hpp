@@ -30,6 +30,7 @@ struct MapPolicyOptions {
   enum class Policy { Global, VisualOdometry };
   Policy policy = Policy::Global;
   int map_size = 500;                 // covariance rows (state entries) for landmarks + robots
+  static constexpr int kMaxMapSize = 10000;  // = filter::StateOptions::kMaxTangentCapacity
   double reparam_threshold = 0.1;     // RT-SLAM REPARAM_TH: convert AHP when the linearity index is below
   int min_searches_to_judge = 10;     // before judging the match ratio
   double min_match_ratio = 0.5;       // matched / searched below this: remove (Global and VO)

@@ -32,15 +32,17 @@ inline double response_of(double a, double b, double c, double k, bool harris) {
 
 }  // namespace
 
-void HarrisOptions::validate() const {
-  const std::string where = "harris options";
+void HarrisOptions::validate(const std::string& where) const {
   require_bound(window_size >= 3 && window_size <= 181 && window_size % 2 == 1, where, "window_size", window_size,
                 "odd and in [3, 181]");
   require_bound(k > 0.0 && k < 0.25, where, "k", k, "in (0, 0.25)");
-  require_bound(harris_threshold >= 0.0, where, "harris_threshold", harris_threshold, ">= 0");
-  require_bound(min_eigen_threshold >= 0.0, where, "min_eigen_threshold", min_eigen_threshold, ">= 0");
-  require_bound(edge_ratio >= 1.0, where, "edge_ratio", edge_ratio, ">= 1");
-  require_bound(border_px >= 0, where, "border_px", border_px, ">= 0");
+  // Responses of 8-bit images: the Harris response of a window of gradients up to 255 stays far below 1e12.
+  require_bound(harris_threshold >= 0.0 && harris_threshold <= 1e12, where, "harris_threshold", harris_threshold,
+                "in [0, 1e12]");
+  require_bound(min_eigen_threshold >= 0.0 && min_eigen_threshold <= 1e12, where, "min_eigen_threshold",
+                min_eigen_threshold, "in [0, 1e12]");
+  require_bound(edge_ratio >= 1.0 && edge_ratio <= 1e6, where, "edge_ratio", edge_ratio, "in [1, 1e6]");
+  require_bound(border_px >= 0 && border_px <= 1000, where, "border_px", border_px, "in [0, 1000] px");
 }
 
 HarrisOptions HarrisOptions::from_yaml(YamlMap& map) {
@@ -74,7 +76,7 @@ HarrisOptions HarrisOptions::from_yaml(YamlMap& map) {
     }
   }
   map.finish();
-  o.validate();
+  o.validate(map.where());
   return o;
 }
 

@@ -41,7 +41,8 @@ struct HarrisOptions {
   /// The threshold of the selected response type.
   double threshold() const { return response == HarrisResponse::harris ? harris_threshold : min_eigen_threshold; }
   /// Throws ConfigError naming the key, the value and the bound.
-  void validate() const;
+  /// `where` names the options in messages (their config section, e.g. "search/zncc", or the file and section).
+  void validate(const std::string& where = "harris options") const;
   /// Reads keys window_size, k, response ("harris" | "min_eigen"), harris_threshold, min_eigen_threshold,
   /// edge_ratio, border_px, subpixel ("quadratic" | "edge_lines"); unknown keys are errors (map.finish()); validates.
   static HarrisOptions from_yaml(YamlMap& map);

@@ -137,15 +137,16 @@ Roi SearchEllipse::bounding_box() const {
 // ---------------------------------------------------------------------------------------------------------------
 // Options
 
-void ZnccOptions::validate() const {
-  const std::string where = "zncc options";
+void ZnccOptions::validate(const std::string& where) const {
   require_bound(threshold >= -1.0 && threshold <= 1.0, where, "threshold", threshold, "in [-1, 1]");
   require_bound(patch_size >= 5 && patch_size <= 31 && patch_size % 2 == 1, where, "patch_size", patch_size,
                 "odd and in [5, 31]");
-  require_bound(coarse_margin >= 0.0, where, "coarse_margin", coarse_margin, ">= 0");
-  require_bound(coarse_candidates_spread >= 0.0, where, "coarse_candidates_spread", coarse_candidates_spread, ">= 0");
+  require_bound(coarse_margin >= 0.0 && coarse_margin <= 2.0, where, "coarse_margin", coarse_margin, "in [0, 2]");
+  require_bound(coarse_candidates_spread >= 0.0 && coarse_candidates_spread <= 2.0, where, "coarse_candidates_spread",
+                coarse_candidates_spread, "in [0, 2]");
   require_bound(climb_radius >= 1 && climb_radius <= 3, where, "climb_radius", climb_radius, "in [1, 3]");
-  require_bound(partial_step_rows >= 1, where, "partial_step_rows", partial_step_rows, ">= 1");
+  require_bound(partial_step_rows >= 1 && partial_step_rows <= patch_size, where, "partial_step_rows",
+                partial_step_rows, "in [1, patch_size]");
 }
 
 ZnccOptions ZnccOptions::from_yaml(YamlMap& map) {
@@ -159,7 +160,7 @@ ZnccOptions ZnccOptions::from_yaml(YamlMap& map) {
   map.get("climb_radius", o.climb_radius);
   map.get("partial_step_rows", o.partial_step_rows);
   map.finish();
-  o.validate();
+  o.validate(map.where());
   return o;
 }
 

@@ -125,7 +125,8 @@ struct ZnccOptions {
   int climb_radius = 2;             // two-level: a climb step looks at the (2r + 1)² neighbourhood, r in [1, 3]
   int partial_step_rows = 4;        // rows between two bound checks (>= 1)
 
-  void validate() const;
+  /// `where` names the options in messages (their config section, e.g. "search/zncc", or the file and section).
+  void validate(const std::string& where = "zncc options") const;
   /// Keys: threshold, patch_size, two_level, partial_correlation, coarse_margin, coarse_candidates_spread,
   /// climb_radius, partial_step_rows.
   static ZnccOptions from_yaml(YamlMap& map);

@@ -9,12 +9,13 @@
 
 namespace rtslam::models {
 
-void AhpPrior::validate() const {
-  if (!(std::isfinite(d_min) && d_min > 0.0)) {
-    throw ConfigError(fmt::format("AHP prior: d_min = {} must be finite and > 0 (metres)", d_min));
+void AhpPrior::validate(const std::string& where) const {
+  // d_min is the distance of the closest features: from a millimetre (a microscope) to 10 km (aerial).
+  if (!(d_min >= 1e-3 && d_min <= 1e4)) {
+    throw ConfigError(fmt::format("{}: d_min = {} must be in [1e-3, 1e4] m", where, d_min));
   }
   if (!(sigma_ratio > 0.0 && sigma_ratio <= 5.0)) {
-    throw ConfigError(fmt::format("AHP prior: depth_prior_sigma_ratio = {} must be in (0, 5]", sigma_ratio));
+    throw ConfigError(fmt::format("{}: depth_prior_sigma_ratio = {} must be in (0, 5]", where, sigma_ratio));
   }
 }
 

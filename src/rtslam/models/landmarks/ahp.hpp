@@ -20,8 +20,8 @@ struct AhpPrior {
   double sigma_ratio = 0.5;   // σ_ρ / ρ̄ (RT-SLAM: 0.5, ±2σ spanning [d_min, ∞))
   double rho_mean() const { return 1.0 / (2.0 * d_min); }
   double rho_sigma() const { return sigma_ratio * rho_mean(); }
-  /// Throws ConfigError unless d_min is finite and > 0.
-  void validate() const;
+  /// Throws ConfigError naming `where` unless d_min is in [1e-3, 1e4] m and sigma_ratio in (0, 5].
+  void validate(const std::string& where = "AHP prior") const;
 };
 
 /// Builds L from the sensor pose T_WS and a ray in S (any non-zero scale, e.g. z = 1 from unproject):

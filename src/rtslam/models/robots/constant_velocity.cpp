@@ -10,11 +10,12 @@
 namespace rtslam::models {
 
 void ConstantVelocityParams::validate() const {
-  if (!(std::isfinite(sigma_v) && sigma_v >= 0.0)) {
-    throw ConfigError(fmt::format("constant velocity: sigma_v = {} must be finite and >= 0 (m/s/sqrt(s))", sigma_v));
+  // Upper bounds: a velocity random walk of 1000 m/s/√s is no motion model any more, only a numerical hazard.
+  if (!(sigma_v >= 0.0 && sigma_v <= 1e3)) {
+    throw ConfigError(fmt::format("motion: sigma_v = {} must be in [0, 1e3] m/s/sqrt(s)", sigma_v));
   }
-  if (!(std::isfinite(sigma_w) && sigma_w >= 0.0)) {
-    throw ConfigError(fmt::format("constant velocity: sigma_w = {} must be finite and >= 0 (rad/s/sqrt(s))", sigma_w));
+  if (!(sigma_w >= 0.0 && sigma_w <= 1e3)) {
+    throw ConfigError(fmt::format("motion: sigma_w = {} must be in [0, 1e3] rad/s/sqrt(s)", sigma_w));
   }
 }
 

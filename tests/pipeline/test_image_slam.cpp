@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <variant>
 
 #include <Eigen/Eigenvalues>
 
@@ -96,6 +97,42 @@ TEST(ImageSlam, SameRunTwiceGivesIdenticalTrajectories) {
   }
   EXPECT_EQ(a.landmarks_created, b.landmarks_created);
   EXPECT_GT(a.landmarks_created, 15);
+}
+
+// An IMU stream that stops before the camera's: the inertial run cannot start and says why (not "no image").
+class ImuEndsAt final : public io::Source {
+ public:
+  ImuEndsAt(std::unique_ptr<io::Source> inner, TimeNs end) : inner_(std::move(inner)), end_(end) {}
+  std::optional<io::Measurement> next() override {
+    while (auto m = inner_->next()) {
+      if (const auto* imu = std::get_if<io::ImuSample>(&*m); imu && imu->t > end_) continue;
+      return m;
+    }
+    return std::nullopt;
+  }
+  const io::SourceStats& stats() const override { return inner_->stats(); }
+
+ private:
+  std::unique_ptr<io::Source> inner_;
+  TimeNs end_;
+};
+
+TEST(ImageSlam, InertialRunWhoseImuEndsBeforeTheImagesSaysSo) {
+  if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
+  const ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
+  io::DatasetOptions dopt;
+  dopt.use_imu = true;
+  io::Dataset ds = io::open_dataset("euroc:" + kEuroc, dopt);
+  const TimeNs first_image = 1403715273262142976;  // cam0's first image
+  ds.source = std::make_unique<ImuEndsAt>(std::move(ds.source), first_image + 200'000'000);
+  try {
+    run_image_slam(ds, o);
+    FAIL() << "the run started without IMU data over its images";
+  } catch (const DataError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("the IMU stream ends before the images"), std::string::npos) << what;
+    EXPECT_NE(what.find("1403715273.462"), std::string::npos) << "the last IMU time: " << what;
+  }
 }
 
 const std::string kMonoslam = RTSLAM_SOURCE_DIR "/../shared/datasets/monoslam-davison";

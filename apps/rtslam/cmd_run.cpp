@@ -36,6 +36,7 @@
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
 #include "rtslam/io/dataset.hpp"
+#include "rtslam/io/realtime.hpp"
 #include "rtslam/pipeline/default_config.hpp"
 #include "rtslam/pipeline/demo_config.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
@@ -71,6 +72,7 @@ struct RunOptions {
   std::string video;                   // --video FILE
   bool force = false;                  // --force: replace the outputs of an earlier run in --out
   io::DatasetOptions input;            // --bad-input, --calibration, --timestamps, --max-imu-dropout, bag topics
+  std::optional<double> realtime;      // --realtime [SPEED]: replay at the sensor clock × SPEED, drop late images
 };
 
 // The files of a run in --out (and their .tmp), besides overlays/, overlay_NNNNN.png and the --video file there.
@@ -415,6 +417,13 @@ void run_dataset(const RunOptions& ro) {
   // Calibration check (inertial runs): a pre-pass over the dataset opened again; the run's stream timing recorded.
   std::string calibration_skipped;
   const auto calibration = calibration_prepass(ro.dataset, dopt, o, simulated, calibration_skipped);
+  // Real time: the stream is released at the sensor clock by an acquisition thread; late images are dropped.
+  const io::RealtimeSource* realtime = nullptr;
+  if (ro.realtime) {
+    auto rt = std::make_unique<io::RealtimeSource>(std::move(ds.source), *ro.realtime);
+    realtime = rt.get();
+    ds.source = std::move(rt);
+  }
   auto stream_monitor = std::make_unique<calib::StreamMonitor>(std::move(ds.source));
   const calib::StreamMonitor& run_stream = *stream_monitor;
   ds.source = std::move(stream_monitor);
@@ -438,7 +447,7 @@ void run_dataset(const RunOptions& ro) {
   pipeline::ImageSlamResult result;
   bool interrupted = false;
   nlohmann::json summary;
-  std::string accuracy_line, display_line, calibration_line;
+  std::string accuracy_line, display_line, calibration_line, realtime_line;
   std::vector<double> times;
   io::Percentiles timing;
   nlohmann::json stages;
@@ -536,6 +545,25 @@ void run_dataset(const RunOptions& ro) {
     }
     summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
     summary["input"] = ds.source->stats().to_json();
+    if (realtime != nullptr) {
+      const io::RealtimeStats rs = realtime->realtime();
+      summary["realtime"] = {{"speed", *ro.realtime},
+                             {"images_released", rs.images_released},
+                             {"images_processed", rs.images_taken},
+                             {"images_dropped", rs.images_dropped},
+                             {"max_lag_s", rs.max_lag_s},
+                             {"mean_lag_s", rs.mean_lag_s},
+                             {"reader_late_s", rs.reader_late_s}};
+      realtime_line = fmt::format(
+          "  real time ({}x the sensor clock): {} of {} images processed, {} dropped (late); filter lag mean "
+          "{:.1f} ms, max {:.1f} ms; acquisition late by up to {:.1f} ms\n",
+          *ro.realtime, rs.images_taken, rs.images_released, rs.images_dropped, 1e3 * rs.mean_lag_s,
+          1e3 * rs.max_lag_s, 1e3 * rs.reader_late_s);
+      if (rs.images_dropped > 0) {
+        logger("run")->warn("real time: {} image(s) dropped because the filter was busy (speed {}x)", rs.images_dropped,
+                            *ro.realtime);
+      }
+    }
     calibration_line = calibration_summary(calibration, calibration_skipped, run_stream.report(), summary);
     summary["seed"] = o.seed;
     summary["frames"] = result.frames.size();
@@ -613,7 +641,7 @@ void run_dataset(const RunOptions& ro) {
       "  landmarks: {} in map at the end ({} Euclidean), {} created; matched per frame: min {} ({} after 1 s)\n"
       "  per-frame time: median {:.3f} ms, p90 {:.3f} ms, max {:.3f} ms (stage medians: predict {:.3f}, match "
       "{:.3f}, ransac {:.3f}, update {:.3f}, init {:.3f}, map {:.3f})\n"
-      "{}{}{}{}  outputs in {}/\n",
+      "{}{}{}{}{}  outputs in {}/\n",
       ds.name, ds.kind, o.seed, result.frames.size(), result.landmarks_final, result.euclidean_final,
       result.landmarks_created, result.frames.empty() ? 0 : min_matched,
       min_matched_after_1s == std::numeric_limits<int>::max() ? 0 : min_matched_after_1s, timing.median, timing.p90,
@@ -628,7 +656,7 @@ void run_dataset(const RunOptions& ro) {
                         result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
                         result.imu_accel_saturated, result.images_before_start)
           : std::string()),
-      calibration_line, display_line, ro.out);
+      calibration_line, realtime_line, display_line, ro.out);
   std::cout << std::flush;
   if (const int sig = RunSignals::received()) {
     std::cerr << fmt::format(
@@ -705,6 +733,28 @@ void register_run(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--stop-after", opts->stop_after_s, "Process this many seconds of input from the start (0: all)")
       ->check(CLI::NonNegativeNumber);
+  sub->add_option_function<std::string>(
+         "--realtime",
+         [opts](const std::string& v) {
+           double speed = 1.0;
+           if (!v.empty()) {
+             std::size_t used = 0;
+             try {
+               speed = std::stod(v, &used);
+             } catch (const std::exception&) {
+               used = 0;
+             }
+             if (used != v.size() || !(speed > 0.0 && speed <= 1000.0)) {
+               throw ConfigError(fmt::format("--realtime = '{}' must be a speed in (0, 1000]", v));
+             }
+           }
+           opts->realtime = speed;
+         },
+                  "Replay the input at its sensor clock times SPEED (default 1), as live data: an acquisition thread "
+                  "reads ahead, the filter takes the newest image and late images are dropped and counted (the IMU "
+                  "never); summary.json 'realtime'")
+      ->expected(0, 1)
+      ->type_name("[SPEED]");
   // The input options of io::DatasetOptions (docs/datasets.md, docs/ros.md); --rate, --start-at and --stop-after above.
   sub->add_option_function<std::string>(
          "--bad-input",

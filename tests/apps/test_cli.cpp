@@ -532,4 +532,49 @@ TEST(Cli, OversizedConfigValuesAreOneLineErrorsNamingFileAndKey) {
   fs::remove_all(d);
 }
 
+// --realtime: the stream replayed at the sensor clock. At 1x a short sequence keeps up (no image dropped); at 10x
+// the run keeps pace with the clock, and every image is either processed or counted as dropped.
+TEST(Cli, RunRealtimeReportsProcessedAndDroppedImages) {
+  const fs::path d = temp_dir("realtime");
+  fs::create_directories(d / "frames");
+  cv::Mat img(120, 160, CV_8UC1);
+  cv::RNG rng(7);
+  std::ofstream times(d / "times.txt");
+  for (int i = 0; i < 40; ++i) {
+    rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+    cv::imwrite((d / "frames" / fmt::format("{}.png", i)).string(), img);
+    times << fmt::format("{:.2f} {}.png\n", 0.05 * i, i);
+  }
+  times.close();
+  std::ofstream(d / "cam.json") << R"({"model": "pinhole", "width": 160, "height": 120, "focal_length_x": 120,
+    "focal_length_y": 120, "principal_point_x": 80, "principal_point_y": 60})";
+  const std::string common = fmt::format("run --dataset images:{} --calibration {} --timestamps {} --quiet --force",
+                                         (d / "frames").string(), (d / "cam.json").string(),
+                                         (d / "times.txt").string());
+  const auto t0 = std::chrono::steady_clock::now();
+  const Result one = run(common + " --realtime --out " + (d / "o1").string());
+  const double one_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_EQ(one.code, 0) << one.out;
+  const std::string s1 = read_file(d / "o1" / "summary.json");
+  EXPECT_NE(s1.find("\"images_released\": 40"), std::string::npos) << s1;
+  EXPECT_NE(s1.find("\"images_dropped\": 0"), std::string::npos) << s1;
+  EXPECT_GE(one_s, 1.9);  // paced by the clock: the 1.95 s of images take about that long
+  const Result ten = run(common + " --realtime 10 --out " + (d / "o10").string());
+  ASSERT_EQ(ten.code, 0) << ten.out;
+  const std::string s10 = read_file(d / "o10" / "summary.json");
+  EXPECT_NE(s10.find("\"speed\": 10"), std::string::npos) << s10;
+  EXPECT_NE(s10.find("\"images_released\": 40"), std::string::npos) << s10;
+  const auto number = [&](const std::string& key) {
+    const auto at = s10.find("\"" + key + "\": ");
+    return at == std::string::npos ? -1 : std::stoi(s10.substr(at + key.size() + 4));
+  };
+  EXPECT_EQ(number("images_processed") + number("images_dropped"), 40) << s10;
+  EXPECT_EQ(frames_of(d / "o10"), number("images_processed"));
+  const Result bad = run(common + " --realtime fast --out " + (d / "o2").string());
+  EXPECT_NE(bad.code, 0);
+  EXPECT_EQ(count_lines(bad.out), 1) << bad.out;
+  EXPECT_NE(bad.out.find("--realtime = 'fast'"), std::string::npos) << bad.out;
+  fs::remove_all(d);
+}
+
 }  // namespace

@@ -1,0 +1,119 @@
+#include "rtslam/io/realtime.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <variant>
+
+#include <fmt/format.h>
+
+#include "rtslam/core/error.hpp"
+
+namespace rtslam::io {
+
+using Clock = std::chrono::steady_clock;
+
+RealtimeSource::RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue)
+    : inner_(std::move(inner)), speed_(speed), max_queue_(max_queue) {
+  RTSLAM_CHECK(inner_ != nullptr, "RealtimeSource: null source");
+  if (!(speed > 0.0 && speed <= 1000.0)) {
+    throw ConfigError(fmt::format("realtime speed = {} must be in (0, 1000] (sensor seconds per wall second)", speed));
+  }
+  if (max_queue_ < 16) throw ConfigError("RealtimeSource: max_queue must be >= 16");
+  count_ = inner_->image_count();
+  inner_stats_ = inner_->stats();
+  thread_ = std::thread([this] { acquire(); });
+}
+
+RealtimeSource::~RealtimeSource() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  changed_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void RealtimeSource::acquire() {
+  std::optional<TimeNs> t0;
+  Clock::time_point wall0;
+  try {
+    while (true) {
+      std::optional<Measurement> m = inner_->next();
+      if (!m) break;
+      const TimeNs t = time_of(*m);
+      if (!t0) {
+        t0 = t;
+        wall0 = Clock::now();
+      }
+      const auto due = wall0 + std::chrono::duration_cast<Clock::duration>(
+                                   std::chrono::duration<double>(to_seconds(t - *t0) / speed_));
+      std::unique_lock<std::mutex> lock(mutex_);
+      // Wait for the release time (or a stop); a full queue (the consumer far behind on IMU samples) waits too.
+      changed_.wait_until(lock, due, [&] { return stop_; });
+      changed_.wait(lock, [&] { return stop_ || queue_.size() < max_queue_; });
+      if (stop_) return;
+      const auto now = Clock::now();
+      stats_.reader_late_s = std::max(stats_.reader_late_s, std::chrono::duration<double>(now - due).count());
+      if (const auto* img = std::get_if<ImageFrame>(&*m)) {
+        const auto c = static_cast<std::size_t>(std::max(img->camera, 0));
+        if (queued_images_.size() <= c) queued_images_.resize(c + 1, 0);
+        ++queued_images_[c];
+        ++stats_.images_released;
+      } else {
+        ++stats_.imu_samples;
+      }
+      queue_.push_back(Item{std::move(*m), due});
+      lock.unlock();
+      changed_.notify_all();
+    }
+  } catch (...) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    error_ = std::current_exception();
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ended_ = true;
+    inner_stats_ = inner_->stats();
+  }
+  changed_.notify_all();
+}
+
+std::optional<Measurement> RealtimeSource::next() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (true) {
+    changed_.wait(lock, [&] { return !queue_.empty() || ended_; });
+    if (queue_.empty()) {
+      if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+      return std::nullopt;
+    }
+    Item item = std::move(queue_.front());
+    queue_.pop_front();
+    changed_.notify_all();  // room in the queue
+    auto* img = std::get_if<ImageFrame>(&item.m);
+    if (img == nullptr) return std::move(item.m);
+    const auto c = static_cast<std::size_t>(std::max(img->camera, 0));
+    --queued_images_[c];
+    if (queued_images_[c] > 0) {  // a newer image of this camera is already here: this one is too late
+      ++stats_.images_dropped;
+      continue;
+    }
+    const double lag = std::chrono::duration<double>(Clock::now() - item.released).count();
+    ++stats_.images_taken;
+    lag_sum_s_ += lag;
+    stats_.max_lag_s = std::max(stats_.max_lag_s, lag);
+    stats_.mean_lag_s = lag_sum_s_ / static_cast<double>(stats_.images_taken);
+    return std::move(item.m);
+  }
+}
+
+const SourceStats& RealtimeSource::stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return inner_stats_;
+}
+
+RealtimeStats RealtimeSource::realtime() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return stats_;
+}
+
+}  // namespace rtslam::io

@@ -1,0 +1,76 @@
+#pragma once
+// Real-time replay (`rtslam run --realtime [SPEED]`): another stream's measurements are released at its sensor clock
+// (× speed) by an acquisition thread, as a live sensor would deliver them, and the consumer (the filter) takes them as
+// it can. IMU samples are never dropped; of the images of a camera that arrived while the filter was busy only the
+// newest is kept — the older ones are dropped and counted (the paper's "the filter processes the most recent data").
+// The acquisition thread also reads and decodes ahead, so decoding overlaps the filter on a second core.
+//
+// Lag: when the consumer takes an image, how long after its release time it is (the filter's delay behind the
+// clock); a run that keeps up has a lag of about one frame's processing time, one that falls behind drops images
+// instead of letting the lag grow. Both figures are in RealtimeStats.
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <vector>
+
+#include "rtslam/io/source.hpp"
+
+namespace rtslam::io {
+
+struct RealtimeStats {
+  std::size_t images_released = 0;  // by the acquisition thread
+  std::size_t images_taken = 0;     // by the consumer
+  std::size_t images_dropped = 0;   // superseded by a newer image of the same camera before being taken
+  std::size_t imu_samples = 0;
+  double max_lag_s = 0.0;           // of the images taken (wall time after their release time)
+  double mean_lag_s = 0.0;
+  double reader_late_s = 0.0;       // worst delay of the acquisition itself (reading/decoding slower than the clock)
+};
+
+class RealtimeSource final : public Source {
+ public:
+  /// speed: sensor seconds per wall second (1: real time); max_queue bounds what waits (IMU samples and images).
+  RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue = 8192);
+  ~RealtimeSource() override;
+  RealtimeSource(const RealtimeSource&) = delete;
+  RealtimeSource& operator=(const RealtimeSource&) = delete;
+
+  /// The next measurement in time order, waiting for its release; images superseded while waiting are skipped.
+  /// Rethrows, at its place in the stream, an error the inner source threw.
+  std::optional<Measurement> next() override;
+  /// The inner source's statistics as of the stream's start, and complete once next() has returned its end.
+  const SourceStats& stats() const override;
+  std::optional<std::size_t> image_count() const override { return count_; }
+  RealtimeStats realtime() const;
+
+ private:
+  void acquire();
+
+  std::unique_ptr<Source> inner_;
+  double speed_;
+  std::size_t max_queue_;
+  std::optional<std::size_t> count_;
+  mutable std::mutex mutex_;
+  std::condition_variable changed_;
+  struct Item {
+    Measurement m;
+    std::chrono::steady_clock::time_point released;
+  };
+  std::deque<Item> queue_;
+  std::vector<std::size_t> queued_images_;  // per camera index: images in the queue
+  bool ended_ = false;
+  bool stop_ = false;
+  std::exception_ptr error_;
+  RealtimeStats stats_;
+  double lag_sum_s_ = 0.0;
+  mutable SourceStats inner_stats_;
+  std::thread thread_;
+};
+
+}  // namespace rtslam::io

@@ -1,0 +1,138 @@
+// Real-time replay (io/realtime.hpp): a stream released at its sensor clock × speed, IMU samples never dropped, late
+// images dropped for the newest, errors where they occurred, no hang when the consumer stops early. Timing bounds are
+// loose (shared CI machines): they tell "paced by the clock" from "not paced" and "keeps up" from "falls behind".
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+#include <variant>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/io/realtime.hpp"
+
+namespace rtslam::io {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr TimeNs kMs = 1'000'000;
+
+// `seconds` of a 20 Hz camera (tiny images) and a 200 Hz IMU, time ordered; throws at `fail_at` if set.
+class SyntheticStream final : public Source {
+ public:
+  explicit SyntheticStream(double seconds, std::optional<TimeNs> fail_at = std::nullopt)
+      : end_(static_cast<TimeNs>(seconds * 1e9)), fail_at_(fail_at) {}
+  std::optional<Measurement> next() override {
+    if (t_ > end_) return std::nullopt;
+    if (fail_at_ && t_ >= *fail_at_) throw DataError("synthetic.csv:7: broken line");
+    const TimeNs t = t_;
+    const bool image = t % (50 * kMs) == 0 && !image_done_;
+    if (image) {
+      image_done_ = true;
+      ImageFrame f;
+      f.t = t;
+      f.image = cv::Mat(4, 4, CV_8UC1, cv::Scalar(static_cast<int>((t / (50 * kMs)) % 256)));
+      ++stats_.images;
+      return f;
+    }
+    image_done_ = false;
+    t_ += 5 * kMs;
+    ImuSample s;
+    s.t = t;
+    ++stats_.imu_samples;
+    return s;
+  }
+  const SourceStats& stats() const override { return stats_; }
+  std::optional<std::size_t> image_count() const override { return static_cast<std::size_t>(end_ / (50 * kMs)) + 1; }
+
+ private:
+  TimeNs t_ = 0, end_;
+  std::optional<TimeNs> fail_at_;
+  bool image_done_ = false;
+  SourceStats stats_;
+};
+
+struct Taken {
+  std::vector<TimeNs> imu, images;
+  double wall_s = 0.0;
+};
+
+Taken consume(RealtimeSource& src, std::chrono::milliseconds per_image) {
+  Taken out;
+  const auto t0 = Clock::now();
+  while (auto m = src.next()) {
+    if (const auto* f = std::get_if<ImageFrame>(&*m)) {
+      out.images.push_back(f->t);
+      EXPECT_EQ(f->image.at<unsigned char>(0, 0), static_cast<unsigned char>((f->t / (50 * kMs)) % 256));
+      std::this_thread::sleep_for(per_image);  // the filter's work
+    } else {
+      out.imu.push_back(time_of(*m));
+    }
+  }
+  out.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return out;
+}
+
+TEST(Realtime, AtOneTimesTheClockAFastConsumerGetsEverythingPacedByTheClock) {
+  RealtimeSource src(std::make_unique<SyntheticStream>(1.0), 1.0);
+  const Taken t = consume(src, std::chrono::milliseconds(1));
+  ASSERT_EQ(t.imu.size(), 201u);
+  ASSERT_EQ(t.images.size(), 21u);
+  for (std::size_t k = 1; k < t.imu.size(); ++k) EXPECT_EQ(t.imu[k] - t.imu[k - 1], 5 * kMs);
+  const RealtimeStats s = src.realtime();
+  EXPECT_EQ(s.images_dropped, 0u);
+  EXPECT_EQ(s.images_taken, 21u);
+  EXPECT_GE(t.wall_s, 0.9);  // paced: 1 s of data takes about 1 s
+  EXPECT_LT(t.wall_s, 3.0);
+  EXPECT_EQ(src.stats().images, 21u);
+}
+
+TEST(Realtime, AtTenTimesASlowConsumerDropsLateImagesButNoImuAndKeepsUpWithTheClock) {
+  // Images every 5 ms of wall time, the consumer needs 12 ms for each: it cannot take them all.
+  RealtimeSource src(std::make_unique<SyntheticStream>(2.0), 10.0);
+  const Taken t = consume(src, std::chrono::milliseconds(12));
+  const RealtimeStats s = src.realtime();
+  EXPECT_EQ(t.imu.size(), 401u);  // the IMU is never dropped
+  for (std::size_t k = 1; k < t.imu.size(); ++k) EXPECT_EQ(t.imu[k] - t.imu[k - 1], 5 * kMs);
+  EXPECT_EQ(s.images_released, 41u);
+  EXPECT_GT(s.images_dropped, 5u);
+  EXPECT_EQ(s.images_taken + s.images_dropped, s.images_released);
+  EXPECT_EQ(t.images.size(), s.images_taken);
+  for (std::size_t k = 1; k < t.images.size(); ++k) EXPECT_GT(t.images[k], t.images[k - 1]);
+  // It does not fall behind: 0.2 s of wall time for the stream, plus at most a few frames of work at the end.
+  EXPECT_LT(t.wall_s, 0.2 + 1.0);
+  EXPECT_LT(s.max_lag_s, 0.5);
+}
+
+TEST(Realtime, AnErrorOfTheStreamArrivesAtItsPlace) {
+  RealtimeSource src(std::make_unique<SyntheticStream>(1.0, 100 * kMs), 50.0);
+  std::size_t imu = 0, images = 0;
+  try {
+    while (auto m = src.next()) ++(std::holds_alternative<ImuSample>(*m) ? imu : images);
+    FAIL() << "the error was lost";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("synthetic.csv:7"), std::string::npos);
+  }
+  // Everything before the failing time first: 20 IMU samples (0..95 ms) and the images of 0 and 50 ms (the first
+  // may have been superseded by the second at 50 times the clock).
+  EXPECT_EQ(imu, 20u);
+  const RealtimeStats s = src.realtime();
+  EXPECT_EQ(s.images_released, 2u);
+  EXPECT_EQ(images + s.images_dropped, 2u);
+}
+
+TEST(Realtime, AConsumerThatStopsEarlyDoesNotHang) {
+  const auto t0 = Clock::now();
+  {
+    RealtimeSource src(std::make_unique<SyntheticStream>(60.0), 1.0);
+    ASSERT_TRUE(src.next().has_value());
+  }  // the destructor stops the acquisition thread, which waits for its next release time
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 2.0);
+}
+
+TEST(Realtime, SpeedOutOfRangeIsAConfigError) {
+  EXPECT_THROW(RealtimeSource(std::make_unique<SyntheticStream>(1.0), 0.0), ConfigError);
+  EXPECT_THROW(RealtimeSource(std::make_unique<SyntheticStream>(1.0), 1e9), ConfigError);
+}
+
+}  // namespace
+}  // namespace rtslam::io

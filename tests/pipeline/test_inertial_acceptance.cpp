@@ -39,12 +39,16 @@ fs::path test_data_dir() {
   return fs::path(RTSLAM_BINARY_DIR) / "test-data";
 }
 
-// The recorded-IMU V1_01 flight rendered once (ground truth beside, not in mav0/).
+// The recorded-IMU V1_01 flight rendered once, cam0 and cam1 (ground truth beside, not in mav0/).
 fs::path recorded_v101() {
   const fs::path dir = test_data_dir() / "euroc-v101-recorded";
-  if (fs::exists(dir / "groundtruth" / "state.csv") && fs::exists(dir / "mav0" / "cam0" / "data.csv")) return dir;
+  if (fs::exists(dir / "groundtruth" / "state.csv") && fs::exists(dir / "mav0" / "cam0" / "data.csv") &&
+      fs::exists(dir / "mav0" / "cam1" / "data.csv")) {
+    return dir;
+  }
   fs::remove_all(dir);
-  const sim::SimConfig sc = sim::SimConfig::load(RTSLAM_SOURCE_DIR "/config/sim/euroc-v101-recorded.yaml");
+  sim::SimConfig sc = sim::SimConfig::load(RTSLAM_SOURCE_DIR "/config/sim/euroc-v101-recorded.yaml");
+  sc.stereo = true;
   sim::Simulation::create(sc)->write_euroc(dir.string(), true);
   return dir;
 }
@@ -57,14 +61,15 @@ struct FolderRun {
 FolderRun run_folder(const fs::path& dir, const ImageSlamOptions& o, double start_at_s = 0.0, double duration_s = 0.0) {
   io::DatasetOptions dopt;
   dopt.use_imu = o.robot == "inertial";
+  dopt.cameras = o.camera_indices();
   dopt.start_offset_s = start_at_s;
   dopt.duration_s = duration_s;
   io::Dataset ds = io::open_dataset("euroc:" + dir.string(), dopt);
   EXPECT_FALSE(ds.ground_truth.has_value()) << "the run must not see the ground truth";
   FolderRun r;
-  r.result = run_image_slam(ds, o);
+  r.result = run_image_slam(ds, o.on_selected_cameras());
   const Trajectory gt = io::read_trajectory((dir / "groundtruth" / "state.csv").string());
-  r.accuracy = eval::evaluate_accuracy(r.result.estimate, gt, o.robot == "inertial");
+  r.accuracy = eval::evaluate_accuracy(r.result.estimate, gt, o.robot == "inertial" || r.result.cameras > 1);
   return r;
 }
 
@@ -150,6 +155,29 @@ TEST(InertialAcceptance, MonocularPresetOnRecordedV101Motion) {
       r.accuracy.ate.sim3_scale, r.result.resets);
   EXPECT_GE(frac, 0.95);
   EXPECT_LE(pct, 1.0);
+}
+
+// Stereo on the same flight (issue "One frame loop in the System ... several cameras"): without the IMU the baseline
+// gives the scale (SE(3) ATE <= 1 % of the path), and stereo-inertial beats mono-inertial.
+TEST(InertialAcceptance, StereoOnRecordedV101) {
+  if (!fs::exists(kStatic)) GTEST_SKIP() << "dataset " << kStatic << " not found";
+  const FolderRun cv = run_folder(recorded_v101(), load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_stereo.yaml"));
+  const FolderRun vi =
+      run_folder(recorded_v101(), load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_stereo_imu.yaml"));
+  const FolderRun mono = run_folder(recorded_v101(), euroc_imu_preset());
+  const auto line = [](const char* name, const FolderRun& r) {
+    std::printf("recorded V1_01, %s: %zu frames, SE(3) ATE %.2f cm = %.3f %% of the %.1f m path, scale error %.2f %%, "
+                "%d reset(s)\n",
+                name, r.result.estimate.poses.size(), 100 * r.accuracy.ate.ate.trans_m.rmse,
+                100 * r.accuracy.ate.ate.trans_m.rmse / r.accuracy.ate.path_length_m, r.accuracy.ate.path_length_m,
+                100 * r.accuracy.scale_error, r.result.resets);
+  };
+  line("euroc_stereo (constant velocity, no IMU)", cv);
+  line("euroc_stereo_imu", vi);
+  line("euroc_mono_imu", mono);
+  EXPECT_EQ(cv.result.cameras, 2);
+  EXPECT_LE(cv.accuracy.ate.ate.trans_m.rmse, 0.01 * cv.accuracy.ate.path_length_m);
+  EXPECT_LT(vi.accuracy.ate.ate.trans_m.rmse, mono.accuracy.ate.ate.trans_m.rmse);
 }
 
 }  // namespace

@@ -76,6 +76,57 @@ TEST(InertialSlam, EurocStandstillStartsAtRestStaysPutAndFindsGravity) {
   EXPECT_LE(tilt, 1.0);
 }
 
+// Zero-velocity updates (zero_velocity, strategies/zero_velocity.hpp) on the same standstill: the IMU (a vibrating MAV
+// passes the rest thresholds) and the images (matched landmarks still) say "at rest" and v = 0 is fused: the updates
+// happen and the velocity estimate is closer to zero than without them. Not met yet (issue "One frame loop ... more
+// sensors" asks for a drift within 1 mm): the first updates move the position by ~3 mm through the start's p–v
+// correlation (drift 6.1 mm with, 2.7 mm without), so the option stays off in the presets; the figures are printed.
+TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
+  if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
+  const auto run = [](bool zupt) {
+    ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
+    o.zero_velocity.enabled = zupt;
+    io::Dataset ds = io::open_dataset("euroc:" + kEuroc);
+    ds.ground_truth.reset();
+    return run_image_slam(ds, o);
+  };
+  const ImageSlamResult off = run(false), on = run(true);
+  const auto figures = [](const ImageSlamResult& r, double& drift, double& speed) {
+    drift = speed = 0.0;
+    for (const StampedPose& p : r.estimate.poses) drift = std::max(drift, (p.p_WR - r.estimate.poses.front().p_WR).norm());
+    const std::size_t half = r.estimate.poses.size() / 2;
+    for (std::size_t k = half; k < r.estimate.poses.size(); ++k) speed += r.estimate.poses[k].v_WR.value_or(Eigen::Vector3d::Zero()).norm();
+    speed /= static_cast<double>(r.estimate.poses.size() - half);
+  };
+  double drift_off = 0, speed_off = 0, drift_on = 0, speed_on = 0;
+  figures(off, drift_off, speed_off);
+  figures(on, drift_on, speed_on);
+  const auto zupts = std::count_if(on.frames.begin(), on.frames.end(), [](const auto& f) { return f.zero_velocity; });
+  std::printf("EuRoC standstill: zero-velocity updates in %ld of %zu frames; drift %.2f mm (without %.2f mm), mean "
+              "speed over the second half %.2f mm/s (without %.2f mm/s)\n",
+              static_cast<long>(zupts), on.frames.size(), 1e3 * drift_on, 1e3 * drift_off, 1e3 * speed_on,
+              1e3 * speed_off);
+  EXPECT_GE(zupts, 20);
+  EXPECT_EQ(std::count_if(off.frames.begin(), off.frames.end(), [](const auto& f) { return f.zero_velocity; }), 0);
+  EXPECT_LT(speed_on, speed_off);
+  EXPECT_LE(drift_on, 0.01);
+}
+
+// ... and never while the robot moves: the simulated hand-held motion (it starts moving at once) gets none after
+// its first second.
+TEST(InertialSlam, NoZeroVelocityUpdateInMotion) {
+  ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/sim_mono_imu.yaml");
+  o.sim_preset = "handheld";
+  o.sim_duration_s = 6.0;
+  o.zero_velocity.enabled = true;
+  io::Dataset ds = make_sim_dataset(o);
+  const ImageSlamResult r = run_image_slam(ds, o);
+  ASSERT_GT(r.frames.size(), 60u);
+  long late = 0;
+  for (const auto& f : r.frames) late += f.zero_velocity && f.t > r.frames.front().t + 1'000'000'000 ? 1 : 0;
+  EXPECT_EQ(late, 0);
+}
+
 // Camera–IMU extrinsics estimated in the filter (imu/estimate_extrinsics): the calibration handed to the filter is
 // off by 2 cm and 1°; after 15 s of hand-held motion the rotation is back within 0.15° and the lever arm (observable
 // only through the body's rotation, so slower) within 10 mm of the truth, both inside 3 of their own standard

@@ -8,6 +8,7 @@
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
+#include "rtslam/strategies/zero_velocity.hpp"
 
 namespace rtslam::pipeline {
 
@@ -168,6 +169,7 @@ BuiltSystem Registry::build(const BuildContext& c) const {
   std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, b);
   b.starter = starter.get();
   b.input_id = b.system->add_robot(std::move(robot), std::move(starter));
+  if (o.zero_velocity.enabled) b.system->add_hook(std::make_unique<strategies::ZeroVelocityUpdater>(o.zero_velocity));
   return b;
 }
 

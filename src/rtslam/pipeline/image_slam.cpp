@@ -62,6 +62,7 @@ void ImageSlamOptions::validate() const {
   search.validate();
   map.validate();
   health.validate();
+  zero_velocity.validate();
 }
 
 std::vector<int> ImageSlamOptions::camera_indices() const {
@@ -107,6 +108,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
   }
   read_map_policy(top.child("map_manager"), o.map);
   slam::read_health(top.child("health"), o.health);
+  strategies::read_zero_velocity(top.child("zero_velocity"), o.zero_velocity);
   {
     YamlMap s = top.child("simulation");
     s.get("preset", o.sim_preset);
@@ -150,6 +152,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["search"] = o.search.to_yaml();
   root["map_manager"] = map_policy_to_yaml(o.map);
   root["health"] = slam::health_to_yaml(o.health);
+  root["zero_velocity"] = strategies::zero_velocity_to_yaml(o.zero_velocity);
   root["simulation"]["preset"] = o.sim_preset;
   root["simulation"]["duration"] = o.sim_duration_s;
   return root;
@@ -243,6 +246,7 @@ struct ImageSlam::Impl final : slam::Observer {
     a.nis_count += b.nis_count;
     a.health = std::max(a.health, b.health);
     a.reset = a.reset || b.reset;
+    a.zero_velocity = a.zero_velocity || b.zero_velocity;
     a.time_predict_ms += b.time_predict_ms;
     a.time_match_ms += b.time_match_ms;
     a.time_ransac_ms += b.time_ransac_ms;

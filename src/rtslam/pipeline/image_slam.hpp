@@ -22,6 +22,7 @@
 //   map_manager: {policy: global|visual_odometry, map_size, reparam_threshold, min_searches_to_judge,
 //                 min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
 //   health:      see slam/health.hpp               (divergence and lost-tracking detection, recovery)
+//   zero_velocity: see strategies/zero_velocity.hpp (updates v = 0 when the IMU and the images say "at rest")
 //   simulation:  {preset, duration}   (only for runs on the simulator: `rtslam run` without --dataset)
 #include <atomic>
 #include <cstdint>
@@ -43,6 +44,7 @@
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
+#include "rtslam/strategies/zero_velocity.hpp"
 
 namespace rtslam::pipeline {
 
@@ -78,6 +80,7 @@ struct ImageSlamOptions {
   strategies::KnownAssociationOptions association;  // the known_association data manager's (point data; not in YAML)
   strategies::MapPolicyOptions map;
   slam::HealthOptions health;
+  strategies::ZeroVelocityOptions zero_velocity;  // zero-velocity updates at rest (strategies/zero_velocity.hpp)
   void validate() const;
   /// The cameras used: `cameras`, or {camera}.
   std::vector<int> camera_indices() const;

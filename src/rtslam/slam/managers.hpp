@@ -32,6 +32,7 @@ struct FrameStats {
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map
   int refused = 0;  // corrections the filter refused (S not positive definite, a variance would turn negative)
+  bool zero_velocity = false;  // a zero-velocity update was applied after the frame (strategies/zero_velocity.hpp)
   // Normalized innovation squared (z − h₀)ᵀ S₀⁻¹ (z − h₀) of the matched observations at their first prediction of
   // the frame, summed, and their number (2 dof each): the health monitor's consistency signal.
   double nis = 0.0;

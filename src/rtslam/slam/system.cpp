@@ -138,6 +138,7 @@ void System::step(Slot& slot, const Sensor& sensor, const RawData& datum) {
   const long index = frame_;
   FrameStats stats = process(datum);
   Robot& robot = *slot.robot;
+  for (const auto& h : hooks_) h->after_step(map_, robot, sensor, datum, slot.recent, stats);
   const HealthMonitor::Verdict verdict = slot.monitor.check(map_, robot, stats);
   stats.health = static_cast<int>(verdict.health);
   if (!verdict.note.empty()) logger("slam")->warn("t = {:.3f} s: {}", to_seconds(datum.t), verdict.note);

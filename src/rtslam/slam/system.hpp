@@ -63,6 +63,15 @@ struct StepReport {
   const std::string& verdict_reason;  // empty when healthy
 };
 
+/// Runs after each datum the filter processed, before the health verdict, with write access to the map: robot-level
+/// corrections that are not a sensor's (e.g. zero-velocity updates). `inputs`: the robot's recent inputs.
+class StepHook {
+ public:
+  virtual ~StepHook() = default;
+  virtual void after_step(Map& map, Robot& robot, const Sensor& sensor, const RawData& raw,
+                          const RingBuffer<ImuData>& inputs, FrameStats& stats) = 0;
+};
+
 class Observer {
  public:
   virtual ~Observer() = default;
@@ -86,6 +95,7 @@ class System {
   /// its proprioceptive inputs are fed with sensor_id = the returned input id.
   int add_robot(std::unique_ptr<Robot> robot, std::unique_ptr<RobotStarter> starter);
   void add_observer(Observer& observer) { observers_.push_back(&observer); }
+  void add_hook(std::unique_ptr<StepHook> hook) { hooks_.push_back(std::move(hook)); }
 
   /// Feeds one datum (see the header comment). Throws DataError when time goes backwards within a stream, the
   /// sensor is unknown, or more than max_pending data wait for inputs.
@@ -157,6 +167,7 @@ class System {
   SystemOptions options_;
   std::vector<Slot> slots_;
   std::vector<Observer*> observers_;
+  std::vector<std::unique_ptr<StepHook>> hooks_;
   RingBuffer<std::unique_ptr<RawData>> pending_;
   std::vector<std::unique_ptr<RawData>> spares_;
   long frame_ = 0;

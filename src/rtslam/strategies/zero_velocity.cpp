@@ -1,0 +1,125 @@
+#include "rtslam/strategies/zero_velocity.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/strategies/active_search.hpp"
+
+namespace rtslam::strategies {
+
+void ZeroVelocityOptions::validate() const {
+  const std::string w = "zero_velocity";
+  require_bound(window_s > 0.0 && window_s <= 10.0, w, "window", window_s, "in (0, 10] s");
+  require_bound(max_gyro_std > 0.0 && max_gyro_std <= 10.0, w, "max_gyro_std", max_gyro_std, "in (0, 10] rad/s");
+  require_bound(max_accel_std > 0.0 && max_accel_std <= 100.0, w, "max_accel_std", max_accel_std,
+                "in (0, 100] m/s²");
+  require_bound(max_disparity_px > 0.0 && max_disparity_px <= 100.0, w, "max_disparity_px", max_disparity_px,
+                "in (0, 100] px");
+  require_bound(min_matches >= 3 && min_matches <= 1000, w, "min_matches", min_matches, "in [3, 1000]");
+  require_bound(velocity_std > 0.0 && velocity_std <= 1.0, w, "velocity_std", velocity_std, "in (0, 1] m/s");
+}
+
+void read_zero_velocity(YamlMap m, ZeroVelocityOptions& o) {
+  m.get("enabled", o.enabled);
+  m.get("window", o.window_s);
+  m.get("max_gyro_std", o.max_gyro_std);
+  m.get("max_accel_std", o.max_accel_std);
+  m.get("max_disparity_px", o.max_disparity_px);
+  m.get("min_matches", o.min_matches);
+  m.get("velocity_std", o.velocity_std);
+  m.finish();
+}
+
+YAML::Node zero_velocity_to_yaml(const ZeroVelocityOptions& o) {
+  YAML::Node n;
+  n["enabled"] = o.enabled;
+  n["window"] = o.window_s;
+  n["max_gyro_std"] = o.max_gyro_std;
+  n["max_accel_std"] = o.max_accel_std;
+  n["max_disparity_px"] = o.max_disparity_px;
+  n["min_matches"] = o.min_matches;
+  n["velocity_std"] = o.velocity_std;
+  return n;
+}
+
+ZeroVelocityUpdater::ZeroVelocityUpdater(ZeroVelocityOptions options) : o_(options) {
+  o_.validate();
+  displacements_.reserve(512);
+}
+
+bool ZeroVelocityUpdater::imu_at_rest(const RingBuffer<slam::ImuData>& inputs, TimeNs t) const {
+  const TimeNs from = t - from_seconds(o_.window_s);
+  if (inputs.empty() || inputs.front().t > from) return false;  // not a whole window yet
+  Eigen::Vector3d sg = Eigen::Vector3d::Zero(), sa = Eigen::Vector3d::Zero();
+  Eigen::Vector3d qg = Eigen::Vector3d::Zero(), qa = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (std::size_t k = inputs.size(); k-- > 0;) {
+    const slam::ImuData& d = inputs[k];
+    if (d.t > t) continue;
+    if (d.t < from) break;
+    sg += d.m.gyro;
+    qg += d.m.gyro.cwiseAbs2();
+    sa += d.m.accel;
+    qa += d.m.accel.cwiseAbs2();
+    ++n;
+  }
+  if (n < 5) return false;
+  const auto spread = [n](const Eigen::Vector3d& s, const Eigen::Vector3d& q) {
+    const Eigen::Vector3d mean = s / n;
+    return (q / n - mean.cwiseAbs2()).cwiseMax(0.0).sum();  // Σ per-axis variances = (norm of the stds)²
+  };
+  return std::sqrt(spread(sg, qg)) <= o_.max_gyro_std && std::sqrt(spread(sa, qa)) <= o_.max_accel_std;
+}
+
+void ZeroVelocityUpdater::after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor,
+                                     const slam::RawData& raw, const RingBuffer<slam::ImuData>& inputs,
+                                     slam::FrameStats& stats) {
+  // The image test: displacement of each landmark matched now and in this sensor's previous frame.
+  const auto* dm = dynamic_cast<const ActiveSearchDataManager*>(sensor.data_manager());
+  if (dm == nullptr || sensor.id() < 0) return;
+  if (last_z_.size() <= static_cast<std::size_t>(sensor.id())) last_z_.resize(static_cast<std::size_t>(sensor.id()) + 1);
+  std::vector<Eigen::Vector2d>& last = last_z_[static_cast<std::size_t>(sensor.id())];
+  constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+  displacements_.clear();
+  for (const auto& m : dm->last_frame()) {
+    if (m.landmark_id < 0) continue;
+    const auto id = static_cast<std::size_t>(m.landmark_id);
+    if (last.size() <= id) last.resize(id + 64, Eigen::Vector2d(kNan, kNan));
+    if (m.matched && !std::isnan(last[id].x())) displacements_.push_back((m.z - last[id]).norm());
+  }
+  // Remember this frame's matches only (a landmark not matched now has no displacement next frame).
+  std::fill(last.begin(), last.end(), Eigen::Vector2d(kNan, kNan));
+  for (const auto& m : dm->last_frame()) {
+    if (m.landmark_id >= 0 && m.matched) last[static_cast<std::size_t>(m.landmark_id)] = m.z;
+  }
+  disparity_ = -1.0;
+  if (static_cast<int>(displacements_.size()) < o_.min_matches) return;
+  auto mid = displacements_.begin() + static_cast<std::ptrdiff_t>(displacements_.size() / 2);
+  std::nth_element(displacements_.begin(), mid, displacements_.end());
+  disparity_ = *mid;
+  if (!o_.enabled || disparity_ > o_.max_disparity_px) return;
+  if (robot.needs_inputs() && !imu_at_rest(inputs, raw.t)) return;
+
+  // v = 0 (robot blocks [p q v ...]: v at tangent rows 6..8; the constant-velocity robot also ω = 0 at 9..11).
+  const int m = robot.needs_inputs() ? 3 : 6;
+  const filter::BlockId blocks[1] = {robot.block()};
+  const int n = robot.layout().tangent_size();
+  if (H_.rows() != m || H_.cols() != n) {  // sized once per robot model (no allocation per update)
+    H_ = Eigen::MatrixXd::Zero(m, n);
+    H_.block(0, 6, m, m).setIdentity();
+    R_ = o_.velocity_std * o_.velocity_std * Eigen::MatrixXd::Identity(m, m);
+    y_.resize(m);
+  }
+  y_ = -map.state().mean(robot.block()).segment(7, m);  // ambient: v at 7 (and ω at 10: constant velocity)
+  const filter::CorrectionResult r = map.state().correct(blocks, H_, y_, R_);
+  if (r.ok()) {
+    stats.zero_velocity = true;
+    ++updates_;
+  }
+}
+
+}  // namespace rtslam::strategies

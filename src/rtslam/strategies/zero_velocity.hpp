@@ -1,0 +1,58 @@
+#pragma once
+// Zero-velocity updates (ZUPT): when the IMU and the images both say the robot is at rest, the filter is told so — a
+// pseudo-measurement v_WR = 0 (and, for the constant-velocity robot, ω = 0) with a small std — which stops the slow
+// drift a filter accumulates while standing (integrated accelerometer noise and bias; OpenVINS's zero-velocity update
+// plays the same part). At rest means, over the last `window` s:
+//   - the IMU: the spread of the gyro and of the accelerometer below thresholds (a vibrating MAV on its legs passes,
+//     a moving one does not: EuRoC V1_01 at rest gyro 0.02–0.085 rad/s, in flight ≥ 0.12), and
+//   - the images: the median displacement of the landmarks matched in this frame and the previous one below
+//     `max_disparity_px` (the IMU alone cannot tell a vibrating rest from slow motion).
+// The detector needs both; robots without inputs are judged by the images alone.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/slam/system.hpp"
+
+namespace rtslam::strategies {
+
+struct ZeroVelocityOptions {
+  bool enabled = false;
+  double window_s = 0.5;           // IMU window judged (s)
+  double max_gyro_std = 0.1;       // rad/s, norm of the per-axis std over the window
+  double max_accel_std = 1.6;      // m/s², idem
+  double max_disparity_px = 0.3;   // median image displacement of the matched landmarks since the previous frame
+  int min_matches = 10;            // landmarks matched in both frames needed to judge the images
+  double velocity_std = 0.002;     // m/s (and rad/s): the pseudo-measurement's std
+  void validate() const;
+};
+
+/// zero_velocity: {enabled, window, max_gyro_std, max_accel_std, max_disparity_px, min_matches, velocity_std}.
+void read_zero_velocity(YamlMap section, ZeroVelocityOptions& o);
+YAML::Node zero_velocity_to_yaml(const ZeroVelocityOptions& o);
+
+class ZeroVelocityUpdater final : public slam::StepHook {
+ public:
+  explicit ZeroVelocityUpdater(ZeroVelocityOptions options);
+  void after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor, const slam::RawData& raw,
+                  const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats) override;
+  long updates() const { return updates_; }
+  /// The image test alone: the median displacement (px) of the landmarks matched now and in the sensor's previous
+  /// frame, or a negative value when fewer than min_matches are.
+  double last_disparity_px() const { return disparity_; }
+
+ private:
+  bool imu_at_rest(const RingBuffer<slam::ImuData>& inputs, TimeNs t) const;
+
+  ZeroVelocityOptions o_;
+  // Per sensor id: the last matched pixel of each landmark id (NaN: not matched then).
+  std::vector<std::vector<Eigen::Vector2d>> last_z_;
+  std::vector<double> displacements_;
+  Eigen::MatrixXd H_, R_;
+  Eigen::VectorXd y_;
+  double disparity_ = -1.0;
+  long updates_ = 0;
+};
+
+}  // namespace rtslam::strategies

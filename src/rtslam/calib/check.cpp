@@ -1,5 +1,6 @@
 #include "rtslam/calib/check.hpp"
 
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include "rtslam/core/log.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
+#include "rtslam/sim/simulation.hpp"
 #include "rtslam/vision/harris.hpp"
 #include "rtslam/vision/zncc.hpp"
 
@@ -111,24 +113,6 @@ double median_of(std::vector<double> v) {
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
   return *mid;
-}
-
-models::CameraIntrinsics intrinsics_of(const io::CameraCalibration& cam) {
-  models::CameraIntrinsics in;
-  in.width = cam.width;
-  in.height = cam.height;
-  in.fx = cam.fx;
-  in.fy = cam.fy;
-  in.cx = cam.cx;
-  in.cy = cam.cy;
-  in.coeffs = cam.distortion_coeffs;
-  switch (cam.distortion) {
-    case io::DistortionModel::None: in.model = models::DistortionModel::None; break;
-    case io::DistortionModel::RadTan: in.model = models::DistortionModel::RadTan; break;
-    case io::DistortionModel::Equidistant: in.model = models::DistortionModel::Equidistant; break;
-    case io::DistortionModel::MonoSlamOneParam: in.model = models::DistortionModel::MonoSlam; break;
-  }
-  return in;
 }
 
 vision::ImageView view_of(const cv::Mat& m) {
@@ -398,7 +382,7 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
   if (frames.size() < 20) return finish(Verdict::failed, fmt::format("{} images in the window", frames.size()));
 
   // 2. Camera rotation per image interval.
-  const models::PinholeCamera cam(intrinsics_of(cal));
+  const models::PinholeCamera cam(sim::to_intrinsics(cal));  // the io → models conversion, one place
   const auto pairs = track(frames, cam.intrinsics(), o);
   RelativeRotationOptions ro;
   ro.epipolar = o.epipolar;

@@ -68,6 +68,8 @@ void ViInitOptions::validate() const {
                 "in [0, 10) m");
   require_bound(max_wait_s >= 0.0 && max_wait_s <= 60.0, w, "max_wait", max_wait_s, "in [0, 60] s");
   require_bound(min_frames >= 3 && min_frames <= 500, w, "min_frames", min_frames, "in [3, 500]");
+  require_bound(min_track_frames >= 3 && min_track_frames <= 500, w, "min_track_frames", min_track_frames,
+                "in [3, 500]");
   require_bound(cells_x >= 1 && cells_x <= 64, w, "cells_x", cells_x, "in [1, 64]");
   require_bound(cells_y >= 1 && cells_y <= 64, w, "cells_y", cells_y, "in [1, 64]");
   require_bound(patch_size >= 5 && patch_size <= 41 && patch_size % 2 == 1, w, "patch_size", patch_size,
@@ -96,6 +98,7 @@ void read_vi_init(YamlMap m, ViInitOptions& o) {
   m.get("max_window", o.max_window_s);
   m.get("min_excitation_m", o.min_excitation_m);
   m.get("min_frames", o.min_frames);
+  m.get("min_track_frames", o.min_track_frames);
   m.get("cells_x", o.cells_x);
   m.get("cells_y", o.cells_y);
   m.get("patch_size", o.patch_size);
@@ -109,6 +112,7 @@ void read_vi_init(YamlMap m, ViInitOptions& o) {
   m.get("max_speed", o.max_speed);
   m.get("max_split_gravity_deg", o.max_split_gravity_deg);
   m.get("max_split_velocity_ratio", o.max_split_velocity_ratio);
+  m.get("refine_gyro_bias", o.refine_gyro_bias);
   m.finish();
 }
 
@@ -120,6 +124,7 @@ YAML::Node vi_init_to_yaml(const ViInitOptions& o) {
   n["max_window"] = o.max_window_s;
   n["min_excitation_m"] = o.min_excitation_m;
   n["min_frames"] = o.min_frames;
+  n["min_track_frames"] = o.min_track_frames;
   n["cells_x"] = o.cells_x;
   n["cells_y"] = o.cells_y;
   n["patch_size"] = o.patch_size;
@@ -133,6 +138,7 @@ YAML::Node vi_init_to_yaml(const ViInitOptions& o) {
   n["max_speed"] = o.max_speed;
   n["max_split_gravity_deg"] = o.max_split_gravity_deg;
   n["max_split_velocity_ratio"] = o.max_split_velocity_ratio;
+  n["refine_gyro_bias"] = o.refine_gyro_bias;
   return n;
 }
 

@@ -39,11 +39,12 @@ struct ViInitOptions {
   double min_excitation_m = 0.1;              // m: displacement the accelerations must cause over the window
   double max_wait_s = 1.0;                    // s of failed windows before the IMU-only start takes over
   int min_frames = 5;
+  int min_track_frames = 5;                   // images a feature must be tracked over (not the whole window)
   int cells_x = 8, cells_y = 5;               // feature grid (one Harris corner per cell)
   int patch_size = 15;                        // ZNCC template (odd)
   double min_score = 0.8;                     // ZNCC acceptance
   double search_px = 40.0;                    // half-size of the search box around the rotation-predicted position
-  int min_features = 12;                      // tracked through the whole window
+  int min_features = 12;                      // tracked over min_track_frames images or more
   double standstill_max_disparity_px = 1.0;   // median feature displacement over the window: at rest below this
   double min_parallax_px = 8.0;               // median displacement after derotation needed for the dynamic solution
   double max_reprojection_px = 2.0;           // RMS of the solution's reprojection errors
@@ -52,6 +53,7 @@ struct ViInitOptions {
   double max_split_gravity_deg = 1.5;         // the window's first and last two thirds solved apart: gravity and
   double max_split_velocity_ratio = 0.1;      // velocity must agree within these (velocity: 0.05 m/s + ratio·|v₀|)
   double accel_bias_std = 0.1;                // m/s², prior of the refinement (not a key: imu/accel_bias_std)
+  bool refine_gyro_bias = true;               // the maximum-likelihood refinement also estimates the gyro bias
   void validate() const;
 };
 /// imu/vi_init: {enabled, window, min_frames, cells_x, cells_y, patch_size, min_score, search_px, min_features,

@@ -129,7 +129,9 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   const Matrix3d R_SR = R_RS.transpose();
   const Vector3d t_SR = -R_SR * T_RS.p;
 
-  // 1. Features in the first image, tracked image to image.
+  // 1. Features: the best Harris corner of each empty grid cell, tracked image to image; a track may begin in any
+  // image of the window and end where its feature leaves the view (at 400 deg/s a corner crosses the image in a
+  // fifth of a second, so hardly any survives a whole window), and cells emptied by the motion are refilled.
   const models::CameraIntrinsics& in = camera.intrinsics();
   const int half = o.patch_size / 2;
   vision::HarrisDetector harris;
@@ -137,72 +139,100 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   zo.patch_size = o.patch_size;
   zo.threshold = o.min_score;
   vision::ZnccMatcher matcher(zo);
+  const std::size_t n_frames = frames.size();
+  const std::size_t min_track = static_cast<std::size_t>(std::min<int>(o.min_track_frames, static_cast<int>(n_frames)));
   struct Track {
-    std::vector<Vector2d> px;
-    vision::Patch patch;
+    std::size_t first = 0;       // image of px[0]
+    std::vector<Vector2d> px;    // px[k]: in image first + k
+    vision::Patch patch;         // the last image's patch (the template of the next match)
     bool alive = true;
+    bool seen(std::size_t i) const { return i >= first && i < first + px.size(); }
+    const Vector2d& at(std::size_t i) const { return px[i - first]; }
+    std::size_t end() const { return first + px.size(); }
   };
   std::vector<Track> tracks;
-  const vision::ImageView first_view = view_of(frames.front().image);
   const int border = half + 2;
-  for (int cy = 0; cy < o.cells_y; ++cy) {
-    for (int cx = 0; cx < o.cells_x; ++cx) {
-      const int x0 = border + (in.width - 2 * border) * cx / o.cells_x;
-      const int x1 = border + (in.width - 2 * border) * (cx + 1) / o.cells_x;
-      const int y0 = border + (in.height - 2 * border) * cy / o.cells_y;
-      const int y1 = border + (in.height - 2 * border) * (cy + 1) / o.cells_y;
-      const auto c = harris.best_corner(first_view, vision::Roi{x0, y0, x1 - x0, y1 - y0});
-      if (!c) continue;
-      Track t;
-      if (!t.patch.extract(first_view, c->u_px, c->v_px, o.patch_size) || t.patch.centred_energy() <= 0) continue;
-      t.px.emplace_back(c->u_px, c->v_px);
-      tracks.push_back(std::move(t));
-    }
-  }
-  for (std::size_t i = 1; i < frames.size(); ++i) {
+  const auto cell_of = [&](const Vector2d& px) {
+    const int cx = std::clamp(static_cast<int>((px.x() - border) * o.cells_x / (in.width - 2 * border)), 0, o.cells_x - 1);
+    const int cy =
+        std::clamp(static_cast<int>((px.y() - border) * o.cells_y / (in.height - 2 * border)), 0, o.cells_y - 1);
+    return cy * o.cells_x + cx;
+  };
+  std::vector<char> occupied(static_cast<std::size_t>(o.cells_x * o.cells_y));
+  for (std::size_t i = 0; i < n_frames; ++i) {
     const vision::ImageView vi = view_of(frames[i].image);
-    // Rotation of camera i-1 into camera i from the gyro: R_{Ci C(i-1)} = R_SR ΔR_iᵀ ΔR_{i-1} R_RS.
-    const Matrix3d R_ci_cp = R_SR * pre[i].dR.transpose() * pre[i - 1].dR * R_RS;
-    for (Track& t : tracks) {
-      if (!t.alive) continue;
-      Vector3d ray;
-      Vector2d pred;
-      if (!camera.unproject(t.px.back(), ray) || !camera.project(R_ci_cp * ray, pred) || !camera.in_image(pred, half)) {
-        t.alive = false;
-        continue;
+    if (i > 0) {
+      // Rotation of camera i-1 into camera i from the gyro: R_{Ci C(i-1)} = R_SR ΔR_iᵀ ΔR_{i-1} R_RS.
+      const Matrix3d R_ci_cp = R_SR * pre[i].dR.transpose() * pre[i - 1].dR * R_RS;
+      for (Track& t : tracks) {
+        if (!t.alive) continue;
+        Vector3d ray;
+        Vector2d pred;
+        if (!camera.unproject(t.px.back(), ray) || !camera.project(R_ci_cp * ray, pred) ||
+            !camera.in_image(pred, half)) {
+          t.alive = false;
+          ++res.tracks_left_view;
+          continue;
+        }
+        const vision::MatchResult m =
+            matcher.match(t.patch, vi, vision::SearchEllipse::box(pred, o.search_px, o.search_px));
+        if (!m.found || !t.patch.extract(vi, m.u_px, m.v_px, o.patch_size) || t.patch.centred_energy() <= 0) {
+          t.alive = false;
+          ++res.tracks_unmatched;
+          continue;
+        }
+        t.px.emplace_back(m.u, m.v);
       }
-      const vision::MatchResult m =
-          matcher.match(t.patch, vi, vision::SearchEllipse::box(pred, o.search_px, o.search_px));
-      if (!m.found || !t.patch.extract(vi, m.u_px, m.v_px, o.patch_size) || t.patch.centred_energy() <= 0) {
-        t.alive = false;
-        continue;
+    }
+    // New tracks in the empty cells, while they can still reach min_track_frames images.
+    if (i + min_track > n_frames) continue;
+    std::fill(occupied.begin(), occupied.end(), 0);
+    for (const Track& t : tracks)
+      if (t.alive) occupied[static_cast<std::size_t>(cell_of(t.px.back()))] = 1;
+    for (int cy = 0; cy < o.cells_y; ++cy) {
+      for (int cx = 0; cx < o.cells_x; ++cx) {
+        if (occupied[static_cast<std::size_t>(cy * o.cells_x + cx)]) continue;
+        const int x0 = border + (in.width - 2 * border) * cx / o.cells_x;
+        const int x1 = border + (in.width - 2 * border) * (cx + 1) / o.cells_x;
+        const int y0 = border + (in.height - 2 * border) * cy / o.cells_y;
+        const int y1 = border + (in.height - 2 * border) * (cy + 1) / o.cells_y;
+        const auto c = harris.best_corner(vi, vision::Roi{x0, y0, x1 - x0, y1 - y0});
+        if (!c) continue;
+        Track t;
+        t.first = i;
+        if (!t.patch.extract(vi, c->u_px, c->v_px, o.patch_size) || t.patch.centred_energy() <= 0) continue;
+        t.px.emplace_back(c->u_px, c->v_px);
+        tracks.push_back(std::move(t));
       }
-      t.px.emplace_back(m.u, m.v);
     }
   }
-  std::erase_if(tracks, [](const Track& t) { return !t.alive; });
+  std::erase_if(tracks, [&](const Track& t) { return t.px.size() < min_track; });
   res.features = static_cast<int>(tracks.size());
   if (res.features < o.min_features) {
-    res.reason = fmt::format("{} features tracked through the window, need {}", res.features, o.min_features);
+    res.reason = fmt::format("{} features tracked over {} images or more, need {} ({} tracks left the view, {} lost "
+                             "their match)",
+                             res.features, min_track, o.min_features, res.tracks_left_view, res.tracks_unmatched);
     return res;
   }
-  // Disparity (raw) and parallax (rotation removed) between the first and the last image.
-  const std::size_t last = frames.size() - 1;
-  const Matrix3d R_cl_c0 = R_SR * pre[last].dR.transpose() * R_RS;
-  std::vector<double> disp, para;
+  // Disparity (raw) and parallax (rotation removed) between each track's first and last image; at rest every
+  // feature stays in view, so the disparity is taken over the tracks spanning the whole window.
+  std::vector<double> disp, disp_full, para;
   for (const Track& t : tracks) {
     disp.push_back((t.px.back() - t.px.front()).norm());
+    if (t.first == 0 && t.end() == n_frames) disp_full.push_back(disp.back());
+    const Matrix3d R_cl_cf = R_SR * pre[t.end() - 1].dR.transpose() * pre[t.first].dR * R_RS;
     Vector3d ray;
     Vector2d derot;
-    if (camera.unproject(t.px.front(), ray) && camera.project(R_cl_c0 * ray, derot)) {
+    if (camera.unproject(t.px.front(), ray) && camera.project(R_cl_cf * ray, derot)) {
       para.push_back((t.px.back() - derot).norm());
     }
   }
-  res.disparity_px = median(disp);
+  const bool enough_full = static_cast<int>(disp_full.size()) >= o.min_features;
+  res.disparity_px = median(enough_full ? disp_full : disp);
   res.parallax_px = median(para);
 
   // 2. At rest: the images say so, whatever the IMU's vibration.
-  if (res.disparity_px < o.standstill_max_disparity_px) {
+  if (enough_full && res.disparity_px < o.standstill_max_disparity_px) {
     Vector3d mw = Vector3d::Zero(), ma = Vector3d::Zero();
     int n = 0;
     for (const auto& s : imu) {
@@ -232,7 +262,7 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   // One observation: rows A p_f + B θ = c with A = [b]× R_SR ΔR_iᵀ, B = [−A t_i, −½ A t_i²], c = A α_i − [b]× t_SR.
   const auto rows = [&](const Track& t, std::size_t i, Matrix3d& A, Eigen::Matrix<double, 3, 6>& B, Vector3d& c) {
     Vector3d ray;
-    if (!camera.unproject(t.px[i], ray)) return false;
+    if (!t.seen(i) || !camera.unproject(t.at(i), ray)) return false;
     const Matrix3d bx = math::skew(ray.normalized());
     A = bx * R_SR * pre[i].dR.transpose();
     const double dt = pre[i].dt;
@@ -251,7 +281,6 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     std::vector<double> range;     // per (feature, image): distance of the feature from the camera (NaN: none)
     std::vector<Vector3d> points;  // per feature: position in R_0
   };
-  const std::size_t n_frames = frames.size();
   // weights (optional, per (feature, image)): 1 / the feature's distance, so that the rows measure angles, not
   // angles times distances (the unweighted problem favours shrinking the scene).
   const auto solve = [&](const std::vector<int>& subset, std::size_t i_begin, std::size_t i_end,
@@ -270,9 +299,17 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     std::vector<FeatureBlocks> fb(subset.size());
     Eigen::Matrix<double, 6, 6> V = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    // A feature seen fewer than twice in [i_begin, i_end) has no position: it stays out of the problem.
+    const auto span = [&](const Track& t) {
+      return std::pair<std::size_t, std::size_t>{std::max(i_begin, t.first), std::min(i_end, t.end())};
+    };
+    std::vector<char> used(subset.size(), 0);
     for (std::size_t j = 0; j < subset.size(); ++j) {
       const Track& t = tracks[static_cast<std::size_t>(subset[j])];
-      for (std::size_t i = i_begin; i < std::min(i_end, t.px.size()); ++i) {
+      const auto [ib, ie] = span(t);
+      if (ie < ib + 2) continue;
+      used[j] = 1;
+      for (std::size_t i = ib; i < ie; ++i) {
         Matrix3d A;
         Eigen::Matrix<double, 3, 6> B;
         Vector3d c;
@@ -291,6 +328,7 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     Eigen::Matrix<double, 6, 6> S = V;
     Eigen::Matrix<double, 6, 1> s = b;
     for (const auto& f : fb) {
+      if (f.U.isZero()) continue;
       const Eigen::LDLT<Matrix3d> U(f.U);
       if (U.info() != Eigen::Success || !(U.vectorD().minCoeff() > 1e-12)) continue;
       S -= f.W.transpose() * U.solve(f.W);
@@ -327,13 +365,21 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     Eigen::Index rr = 0;
     for (std::size_t j = 0; j < subset.size(); ++j) {
       const Track& t = tracks[static_cast<std::size_t>(subset[j])];
+      if (!used[j]) {
+        sol.points.push_back(Vector3d::Zero());
+        sol.rms_px.push_back(std::numeric_limits<double>::quiet_NaN());
+        sol.depth.push_back(std::numeric_limits<double>::quiet_NaN());
+        continue;
+      }
       const Vector3d p_f = Eigen::LDLT<Matrix3d>(fb[j].U).solve(fb[j].a - fb[j].W * theta);
       sol.points.push_back(p_f);
       double sse = 0.0;
       int n = 0;
       double depth = std::numeric_limits<double>::quiet_NaN();
       bool front = true;
-      for (std::size_t i = i_begin; i < std::min(i_end, t.px.size()); ++i) {
+      const auto [ib, ie] = span(t);
+      rr = 3 * static_cast<Eigen::Index>(j * n_frames + ib);
+      for (std::size_t i = ib; i < ie; ++i) {
         const double dt = pre[i].dt;
         const Vector3d p_C =
             R_SR * (pre[i].dR.transpose() * (p_f - sol.v0 * dt - 0.5 * sol.g * dt * dt - pre[i].alpha)) + t_SR;
@@ -351,9 +397,9 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
           continue;
         }
         sol.range[j * n_frames + i] = p_C.norm();
-        sse += (z - t.px[i]).squaredNorm();
+        sse += (z - t.at(i)).squaredNorm();
         ++n;
-        if (i == i_begin) depth = p_C.norm();
+        if (i == ib) depth = p_C.norm();
       }
       sol.rms_px.push_back(front && n > 0 ? std::sqrt(sse / n) : std::numeric_limits<double>::infinity());
       sol.depth.push_back(front ? depth : std::numeric_limits<double>::quiet_NaN());
@@ -442,76 +488,110 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   }
   res.features = static_cast<int>(subset.size());
   // 4. Maximum likelihood: the linear solution minimizes algebraic errors (cross products), which are not the
-  // pixel errors and bias the scale low on real tracks; it starts a robust Gauss-Newton on the reprojection errors
-  // over v0, gravity (on its sphere), the accelerometer bias (with its prior: over a short window it is nearly
-  // indistinguishable from a tilt) and the features (eliminated by Schur complement), as the refinement step
-  // of the OpenVINS and VINS-Mono initializers.
-  Vector3d v0 = sol.v0, g = sol.g, b_a = Vector3d::Zero();
-  {
-    using Mat8 = Eigen::Matrix<double, 8, 8>;
-    using Vec8 = Eigen::Matrix<double, 8, 1>;
-    std::vector<Vector3d> pts = sol.points;
-    const double huber = 1.5;                                             // px
-    const double prior_ba = 1.0 / (o.accel_bias_std * o.accel_bias_std);  // (m/s²)⁻², per axis
-    const auto tangent = [](const Vector3d& gv) {
-      Eigen::Matrix<double, 3, 2> T;
-      const Vector3d n = gv.normalized();
-      const Vector3d a = std::abs(n.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY();
-      T.col(0) = n.cross(a).normalized();
-      T.col(1) = n.cross(T.col(0));
-      return T;
-    };
-    // Pixel residual of feature j in image i and its Jacobians (false: behind the camera / outside the model).
-    const auto residual = [&](std::size_t j, std::size_t i, const Vector3d& pv, const Vector3d& vv, const Vector3d& gv,
-                              const Vector3d& bv, Vector2d& r, Eigen::Matrix<double, 2, 3>* Jp,
-                              Eigen::Matrix<double, 2, 8>* Jt) {
+  // pixel errors: it biases the scale low on real tracks and, at 400 deg/s, tilts gravity by 10-20 deg where the
+  // pixel errors say 1 deg. It starts a robust Gauss-Newton (Levenberg-Marquardt) on the reprojection errors over
+  // v0, gravity (on its sphere), the accelerometer bias (with its prior: over a short window it is nearly
+  // indistinguishable from a tilt), the gyro bias (its change from step 3's estimate, preintegration Jacobians
+  // taken numerically) and the features (eliminated by Schur complement), as the refinement step of the OpenVINS and
+  // VINS-Mono initializers. It is run on the whole window and, for the consistency check, on its two parts.
+  using Mat11 = Eigen::Matrix<double, 11, 11>;
+  using Vec11 = Eigen::Matrix<double, 11, 1>;
+  struct Refined {
+    Vector3d v0 = Vector3d::Zero(), g = Vector3d::Zero(), b_a = Vector3d::Zero(), b_g = Vector3d::Zero();
+    std::vector<Vector3d> pts;
+    Mat11 H = Mat11::Identity();    // reduced information of [v0 δg b_a b_g] (unit pixel noise)
+    std::vector<double> rms_px;     // per feature of the subset (∞: behind a camera, NaN: not in the range)
+    std::vector<double> depth;      // per feature: distance from the camera of its first image in the range
+    std::vector<double> sq;         // every squared pixel residual
+  };
+  const double huber = 1.5;                                             // px
+  const double prior_ba = 1.0 / (o.accel_bias_std * o.accel_bias_std);  // (m/s²)⁻², per axis
+  const auto tangent = [](const Vector3d& gv) {
+    Eigen::Matrix<double, 3, 2> T;
+    const Vector3d nv = gv.normalized();
+    const Vector3d av = std::abs(nv.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY();
+    T.col(0) = nv.cross(av).normalized();
+    T.col(1) = nv.cross(T.col(0));
+    return T;
+  };
+  const auto refine = [&](std::size_t i_begin, std::size_t i_end, Refined x, bool with_gyro_bias) {
+    const std::size_t m = subset.size();
+    std::vector<char> used(m, 0);
+    for (std::size_t j = 0; j < m; ++j) {
       const Track& t = tracks[static_cast<std::size_t>(subset[j])];
-      if (i >= t.px.size()) return false;
-      const double dt = pre[i].dt;
-      const Matrix3d C = R_SR * pre[i].dR.transpose();
-      const Vector3d p_C = C * (pv - vv * dt - 0.5 * gv * dt * dt - pre[i].alpha + pre[i].alpha_ba * bv) + t_SR;
+      used[j] = std::min(i_end, t.end()) >= std::max(i_begin, t.first) + 2 ? 1 : 0;
+    }
+    std::vector<Preint> pr;
+    preintegrate(imu, t0, times, x.b_g, pr);
+    // Pixel residual of feature j in image i, and its Jacobians (false: behind the camera or outside the model).
+    // J_bg: the rotation ΔR_i(b_g + δ) ≈ ΔR_i Exp(JR_i δ) and α_i(b_g + δ) ≈ α_i + JA_i δ.
+    std::vector<Matrix3d> JR(n_frames, Matrix3d::Zero()), JA(n_frames, Matrix3d::Zero());
+    const auto residual = [&](std::size_t j, std::size_t i, const std::vector<Preint>& pi, const Vector3d& pv,
+                              const Vector3d& vv, const Vector3d& gv, const Vector3d& bv, Vector2d& r,
+                              Eigen::Matrix<double, 2, 3>* Jp, Eigen::Matrix<double, 2, 11>* Jt) {
+      const Track& t = tracks[static_cast<std::size_t>(subset[j])];
+      if (!t.seen(i)) return false;
+      const double dt = pi[i].dt;
+      const Vector3d q = pv - vv * dt - 0.5 * gv * dt * dt - pi[i].alpha + pi[i].alpha_ba * bv;
+      const Matrix3d C = R_SR * pi[i].dR.transpose();
+      const Vector3d p_C = C * q + t_SR;
       if (!(p_C.z() > 0.05)) return false;
       Vector2d z;
       Eigen::Matrix<double, 2, 3> J_pi;
       if (!camera.project(p_C, z, &J_pi)) return false;
-      r = z - t.px[i];
+      r = z - t.at(i);
       if (Jp != nullptr) {
         const Eigen::Matrix<double, 2, 3> JC = J_pi * C;
         *Jp = JC;
         Jt->leftCols<3>() = -dt * JC;
         Jt->middleCols<2>(3) = -0.5 * dt * dt * o.gravity * JC * tangent(gv);
-        Jt->rightCols<3>() = JC * pre[i].alpha_ba;
+        Jt->middleCols<3>(5) = JC * pi[i].alpha_ba;
+        Jt->rightCols<3>() = J_pi * R_SR * (math::skew(pi[i].dR.transpose() * q) * JR[i] - pi[i].dR.transpose() * JA[i]);
       }
       return true;
     };
-    const auto cost = [&](const std::vector<Vector3d>& pv, const Vector3d& vv, const Vector3d& gv, const Vector3d& bv) {
-      double c = prior_ba * bv.squaredNorm();
-      for (std::size_t j = 0; j < subset.size(); ++j)
-        for (std::size_t i = 0; i < frames.size(); ++i) {
+    const auto cost = [&](const std::vector<Preint>& pi, const Refined& y) {
+      double c = prior_ba * y.b_a.squaredNorm();
+      for (std::size_t j = 0; j < m; ++j) {
+        if (!used[j]) continue;
+        for (std::size_t i = i_begin; i < i_end; ++i) {
           Vector2d r;
-          if (!residual(j, i, pv[j], vv, gv, bv, r, nullptr, nullptr)) continue;
+          if (!residual(j, i, pi, y.pts[j], y.v0, y.g, y.b_a, r, nullptr, nullptr)) continue;
           const double e = r.norm();
           c += e <= huber ? e * e : huber * (2.0 * e - huber);
         }
+      }
       return c;
     };
-    double c0 = cost(pts, v0, g, b_a);
+    double c0 = cost(pr, x);
     double lambda = 1e-4;
-    Mat8 H_reduced = Mat8::Identity();
+    const int n_theta = with_gyro_bias ? 11 : 8;
     for (int it = 0; it < 15 && std::isfinite(c0); ++it) {
-      Mat8 V = Mat8::Zero();
-      Vec8 bvec = Vec8::Zero();
-      V.bottomRightCorner<3, 3>() += prior_ba * Matrix3d::Identity();
-      bvec.tail<3>() -= prior_ba * b_a;
-      std::vector<Matrix3d> U(subset.size(), Matrix3d::Zero());
-      std::vector<Eigen::Matrix<double, 3, 8>> Wm(subset.size(), Eigen::Matrix<double, 3, 8>::Zero());
-      std::vector<Vector3d> up(subset.size(), Vector3d::Zero());
-      for (std::size_t j = 0; j < subset.size(); ++j)
-        for (std::size_t i = 0; i < frames.size(); ++i) {
+      if (with_gyro_bias) {
+        for (int k = 0; k < 3; ++k) {
+          const double h = 1e-5;
+          std::vector<Preint> pk;
+          preintegrate(imu, t0, times, x.b_g + h * Vector3d::Unit(k), pk);
+          for (std::size_t i = 0; i < n_frames; ++i) {
+            JR[i].col(k) = math::log_so3(Eigen::Quaterniond(pr[i].dR.transpose() * pk[i].dR)) / h;
+            JA[i].col(k) = (pk[i].alpha - pr[i].alpha) / h;
+          }
+        }
+      }
+      Mat11 V = Mat11::Zero();
+      Vec11 bvec = Vec11::Zero();
+      V.block<3, 3>(5, 5) += prior_ba * Matrix3d::Identity();
+      bvec.segment<3>(5) -= prior_ba * x.b_a;
+      std::vector<Matrix3d> U(m, Matrix3d::Zero());
+      std::vector<Eigen::Matrix<double, 3, 11>> Wm(m, Eigen::Matrix<double, 3, 11>::Zero());
+      std::vector<Vector3d> up(m, Vector3d::Zero());
+      for (std::size_t j = 0; j < m; ++j) {
+        if (!used[j]) continue;
+        for (std::size_t i = i_begin; i < i_end; ++i) {
           Vector2d r;
           Eigen::Matrix<double, 2, 3> Jp;
-          Eigen::Matrix<double, 2, 8> Jt;
-          if (!residual(j, i, pts[j], v0, g, b_a, r, &Jp, &Jt)) continue;
+          Eigen::Matrix<double, 2, 11> Jt;
+          if (!residual(j, i, pr, x.pts[j], x.v0, x.g, x.b_a, r, &Jp, &Jt)) continue;
           const double e = r.norm();
           const double w = e <= huber ? 1.0 : huber / e;
           U[j] += w * Jp.transpose() * Jp;
@@ -520,29 +600,43 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
           V += w * Jt.transpose() * Jt;
           bvec -= w * Jt.transpose() * r;
         }
-      Mat8 S8 = V;
-      Vec8 s8 = bvec;
-      std::vector<Matrix3d> Uinv(subset.size());
-      for (std::size_t j = 0; j < subset.size(); ++j) {
-        Uinv[j] = (U[j] + lambda * Matrix3d(U[j].diagonal().asDiagonal()) + 1e-9 * Matrix3d::Identity()).inverse();
-        S8 -= Wm[j].transpose() * Uinv[j] * Wm[j];
-        s8 -= Wm[j].transpose() * Uinv[j] * up[j];
       }
-      H_reduced = S8;
-      const Vec8 step = (S8 + lambda * Mat8(S8.diagonal().asDiagonal())).ldlt().solve(s8);
+      Mat11 S = V;
+      Vec11 sv = bvec;
+      std::vector<Matrix3d> Uinv(m, Matrix3d::Zero());
+      for (std::size_t j = 0; j < m; ++j) {
+        if (!used[j]) continue;
+        Uinv[j] = (U[j] + lambda * Matrix3d(U[j].diagonal().asDiagonal()) + 1e-9 * Matrix3d::Identity()).inverse();
+        S -= Wm[j].transpose() * Uinv[j] * Wm[j];
+        sv -= Wm[j].transpose() * Uinv[j] * up[j];
+      }
+      if (!with_gyro_bias) {  // b_g held: its rows and columns out of the step
+        S.bottomRows<3>().setZero();
+        S.rightCols<3>().setZero();
+        S.bottomRightCorner<3, 3>().setIdentity();
+        sv.tail<3>().setZero();
+      }
+      x.H = S;
+      const Vec11 step = (S + lambda * Mat11(S.diagonal().asDiagonal())).ldlt().solve(sv);
       if (!step.allFinite()) break;
-      std::vector<Vector3d> pts1(subset.size());
-      for (std::size_t j = 0; j < subset.size(); ++j) pts1[j] = pts[j] + Uinv[j] * (up[j] - Wm[j] * step);
-      const Vector3d v1 = v0 + step.head<3>();
-      const Vector3d g1 = (g + tangent(g) * step.segment<2>(3) * o.gravity).normalized() * o.gravity;
-      const Vector3d b1 = b_a + step.tail<3>();
-      const double c1 = cost(pts1, v1, g1, b1);
+      Refined y = x;
+      for (std::size_t j = 0; j < m; ++j)
+        if (used[j]) y.pts[j] = x.pts[j] + Uinv[j] * (up[j] - Wm[j] * step);
+      y.v0 = x.v0 + step.head<3>();
+      y.g = (x.g + tangent(x.g) * step.segment<2>(3) * o.gravity).normalized() * o.gravity;
+      y.b_a = x.b_a + step.segment<3>(5);
+      y.b_g = x.b_g + step.tail<3>();
+      std::vector<Preint> py;
+      if (n_theta == 11) {
+        preintegrate(imu, t0, times, y.b_g, py);
+      } else {
+        py = pr;
+      }
+      const double c1 = cost(py, y);
       if (c1 < c0) {
         const double gain = c0 - c1;
-        pts = std::move(pts1);
-        v0 = v1;
-        g = g1;
-        b_a = b1;
+        x = std::move(y);
+        pr = std::move(py);
         c0 = c1;
         lambda = std::max(1e-7, lambda / 10.0);
         if (gain < 1e-6 * c0 || step.norm() < 1e-7) break;
@@ -551,42 +645,61 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
         if (lambda > 1e4) break;
       }
     }
-    // Per-feature RMS and depth at the first image with the refined solution.
-    sol.rms_px.assign(subset.size(), std::numeric_limits<double>::infinity());
-    sol.depth.assign(subset.size(), std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> all_sq;
-    for (std::size_t j = 0; j < subset.size(); ++j) {
+    // Per-feature RMS, and depth in the camera of the feature's first image in the range.
+    x.rms_px.assign(m, std::numeric_limits<double>::quiet_NaN());
+    x.depth.assign(m, std::numeric_limits<double>::quiet_NaN());
+    x.sq.clear();
+    for (std::size_t j = 0; j < m; ++j) {
+      if (!used[j]) continue;
+      const Track& t = tracks[static_cast<std::size_t>(subset[j])];
       double sse = 0.0;
       int n = 0;
       bool front = true;
-      for (std::size_t i = 0; i < std::min(frames.size(), tracks[static_cast<std::size_t>(subset[j])].px.size()); ++i) {
+      const std::size_t ib = std::max(i_begin, t.first), ie = std::min(i_end, t.end());
+      for (std::size_t i = ib; i < ie; ++i) {
         Vector2d r;
-        if (!residual(j, i, pts[j], v0, g, b_a, r, nullptr, nullptr)) {
+        if (!residual(j, i, pr, x.pts[j], x.v0, x.g, x.b_a, r, nullptr, nullptr)) {
           front = false;
           continue;
         }
         sse += r.squaredNorm();
-        all_sq.push_back(r.squaredNorm());
+        x.sq.push_back(r.squaredNorm());
         ++n;
       }
+      x.rms_px[j] = front && n > 0 ? std::sqrt(sse / n) : std::numeric_limits<double>::infinity();
       if (front && n > 0) {
-        sol.rms_px[j] = std::sqrt(sse / n);
-        const double dt = pre[0].dt;
-        sol.depth[j] = (R_SR * pre[0].dR.transpose() *
-                            (pts[j] - v0 * dt - 0.5 * g * dt * dt - pre[0].alpha + pre[0].alpha_ba * b_a) +
-                        t_SR)
-                           .norm();
+        const Preint& p0 = pr[ib];
+        const double dt = p0.dt;
+        x.depth[j] = (R_SR * p0.dR.transpose() *
+                          (x.pts[j] - x.v0 * dt - 0.5 * x.g * dt * dt - p0.alpha + p0.alpha_ba * x.b_a) +
+                      t_SR)
+                         .norm();
       }
     }
+    return x;
+  };
+  Refined start;
+  start.v0 = sol.v0;
+  start.g = sol.g;
+  start.b_g = b_g;
+  start.pts = sol.points;
+  const Refined ml = refine(0, n_frames, start, o.refine_gyro_bias);
+  const Vector3d v0 = ml.v0, g = ml.g;
+  sol.rms_px = ml.rms_px;
+  sol.depth = ml.depth;
+  {
     // Covariance of [v0 δg b_a]: the reduced information with the tracking noise (the median squared residual per
     // axis, at least (0.5 px)²), gravity mapped back to 3D; kept in the result for the filter's prior.
-    const double sigma2 = std::max(0.25, 0.5 * median(all_sq) / 0.4549);  // median of χ²₂ is 1.386; per axis
-    const Mat8 cov8 = sigma2 * H_reduced.ldlt().solve(Mat8::Identity());
-    Eigen::Matrix<double, 6, 8> M = Eigen::Matrix<double, 6, 8>::Zero();
+    const double sigma2 = std::max(0.25, 0.5 * median(ml.sq) / 0.4549);  // median of χ²₂ is 1.386; per axis
+    const Mat11 cov11 = sigma2 * ml.H.ldlt().solve(Mat11::Identity());
+    Eigen::Matrix<double, 6, 11> M = Eigen::Matrix<double, 6, 11>::Zero();
     M.topLeftCorner<3, 3>().setIdentity();
     M.block<3, 2>(3, 3) = o.gravity * tangent(g);
-    res.cov_v_g = M * cov8 * M.transpose();
-    res.accel_bias = b_a;
+    res.cov_v_g = M * cov11 * M.transpose();
+    if (o.refine_gyro_bias) res.cov_gyro_bias = cov11.bottomRightCorner<3, 3>();
+    res.accel_bias = ml.b_a;
+    res.gyro_bias = ml.b_g;
+    preintegrate(imu, t0, times, ml.b_g, pre);
   }
   // The scale comes from the accelerations: their displacement over the window, |α_i + ½ g t_i²| (R_0), must stand
   // out of the tracking noise and the unmodelled accelerometer bias (½ b t² is 8 mm over 0.4 s for 0.1 m/s²).
@@ -620,16 +733,20 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   // at the first image, in R_0), must agree. A window whose tracks drift consistently (fast rotation) can fit one
   // wrong motion to a pixel; its parts then disagree.
   const std::size_t n = frames.size();
-  const Solution early = solve_irls(subset, 0, (2 * n + 2) / 3), late = solve_irls(subset, n / 3, n);
-  if (!early.ok || !late.ok) {
-    res.reason = "a part of the window is degenerate";
-    return res;
-  }
-  const double g_angle = std::acos(std::clamp(early.g.normalized().dot(late.g.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
-  const double dv = (early.v0 - late.v0).norm();
+  // The parts keep the whole window's gyro bias: they check the motion (v0, g), and a third less data would leave the
+  // bias free to absorb their differences.
+  const Refined early = refine(0, (2 * n + 2) / 3, ml, false), late = refine(n / 3, n, ml, false);
+  // All three (the whole window and its parts) must agree: parts that agree with each other but not with the whole
+  // say that the whole window's refinement stopped in a local minimum of the linear solution's making.
+  const auto angle_deg = [](const Vector3d& a, const Vector3d& b) {
+    return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+  };
+  const double g_angle = std::max({angle_deg(early.g, late.g), angle_deg(g, early.g), angle_deg(g, late.g)});
+  const double dv = std::max({(early.v0 - late.v0).norm(), (v0 - early.v0).norm(), (v0 - late.v0).norm()});
   if (g_angle > o.max_split_gravity_deg || dv > 0.05 + o.max_split_velocity_ratio * v0.norm()) {
     res.reason =
         fmt::format("the window's parts disagree (gravity {:.1f} deg, velocity {:.2f} m/s apart)", g_angle, dv);
+    res.needs_longer_window = true;  // a longer window conditions the problem better
     return res;
   }
   if (n_px < std::max(o.min_features, (3 * static_cast<int>(subset.size())) / 4)) {
@@ -669,7 +786,10 @@ InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialOption
   const Eigen::SelfAdjointEigenSolver<Matrix3d> eg(r.cov_v_g.bottomRightCorner<3, 3>());
   const double v_std = std::max(0.05, 3.0 * std::sqrt(std::max(0.0, ev.eigenvalues().maxCoeff())));
   const double g_std = std::max(0.1, 3.0 * std::sqrt(std::max(0.0, eg.eigenvalues().maxCoeff())));
-  s.P = prior_covariance(std::min(v_std, o.velocity_std_motion), o.accel_bias_std, o.gyro_bias_std,
+  // The gyro bias as the window estimated it: the filter's prior, or the estimate's 3σ when that is broader.
+  const Eigen::SelfAdjointEigenSolver<Matrix3d> eb(r.cov_gyro_bias);
+  const double wb_std = std::max(o.gyro_bias_std, 3.0 * std::sqrt(std::max(0.0, eb.eigenvalues().maxCoeff())));
+  s.P = prior_covariance(std::min(v_std, o.velocity_std_motion), o.accel_bias_std, wb_std,
                          std::min(g_std, o.gravity_std_motion), R);
   constrain_gravity_magnitude(s, o);
   return s;

@@ -15,6 +15,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
 #include "rtslam/io/image_header.hpp"
+#include "rtslam/io/prefetch.hpp"
 #include "rtslam/io/text.hpp"
 
 namespace rtslam::io {
@@ -264,7 +265,7 @@ std::optional<Measurement> IndexedSource::next() {
     frame.camera = e.camera;
     frame.path = e.path;
     std::string why;
-    frame.image = read_grey_image(e.path, &why);
+    frame.image = decode_ahead_ ? decode_ahead_->take(decode_index_[item.index], &why) : read_grey_image(e.path, &why);
     if (frame.image.empty()) {
       const bool missing = !fs::exists(e.path);
       reporter_.report(missing ? &SourceStats::missing_images : &SourceStats::undecodable_images,
@@ -285,6 +286,25 @@ std::optional<Measurement> IndexedSource::next() {
   }
   return std::nullopt;
 }
+
+IndexedSource::~IndexedSource() = default;
+
+bool IndexedSource::prefetch(const PrefetchOptions& options) {
+  if (options.threads <= 0) return false;
+  // The images still to come, in stream order (cameras interleaved by time).
+  std::vector<std::string> paths;
+  decode_index_.assign(images_.size(), 0);
+  for (std::size_t p = pos_; p < order_.size(); ++p) {
+    if (order_[p].kind == 0) continue;
+    decode_index_[order_[p].index] = paths.size();
+    paths.push_back(images_[order_[p].index].path);
+  }
+  decode_ahead_.reset();  // a second call restarts the workers
+  decode_ahead_ = std::make_unique<DecodeAhead>(std::move(paths), options.threads, options.depth);
+  return true;
+}
+
+double IndexedSource::prefetch_wait_s() const { return decode_ahead_ ? decode_ahead_->wait_s() : 0.0; }
 
 bool IndexedSource::seek(TimeNs t) {
   while (pos_ < order_.size() && order_[pos_].t < t) ++pos_;

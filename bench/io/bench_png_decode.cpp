@@ -21,6 +21,7 @@
 #include <spng.h>
 #endif
 
+#include "rtslam/io/png_grey.hpp"
 #include "rtslam/io/source.hpp"
 
 namespace {
@@ -80,6 +81,14 @@ cv::Mat decode_spng(const Bytes& b) {
 }
 #endif
 
+cv::Mat decode_libdeflate(const Bytes& b) {
+  cv::Mat out;
+  if (!rtslam::io::decode_png_grey8(b.data(), b.size(), std::size_t{1} << 28, out)) {
+    throw std::runtime_error("not an 8-bit grey PNG");
+  }
+  return out;
+}
+
 template <cv::Mat (*Decode)(const Bytes&)>
 void BM_Decode(benchmark::State& st) {
   const auto& files = images();
@@ -103,6 +112,7 @@ void BM_Decode(benchmark::State& st) {
 }
 BENCHMARK(BM_Decode<decode_opencv>)->Name("BM_DecodeOpenCV")->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Decode<decode_libpng>)->Name("BM_DecodeLibpng")->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Decode<decode_libdeflate>)->Name("BM_DecodeLibdeflate")->Unit(benchmark::kMillisecond);
 #ifdef RTSLAM_BENCH_SPNG
 BENCHMARK(BM_Decode<decode_spng>)->Name("BM_DecodeSpng")->Unit(benchmark::kMillisecond);
 #endif

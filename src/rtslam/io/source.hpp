@@ -170,9 +170,6 @@ class IndexedSource : public Source {
   bool seek(TimeNs t) override;
   /// Decodes the image files ahead in worker threads (the checks and the bad-input policy stay in next()).
   bool prefetch(const PrefetchOptions& options) override;
-  /// Seconds next() spent waiting for a worker to decode an image (0 without prefetch): the time decoding held up
-  /// the consumer.
-  double prefetch_wait_s() const;
   ~IndexedSource() override;
   /// Merges problems a reader met while parsing its lists (they count in stats()).
   void add_parse_problems(const SourceStats& parse_stats) { stats_.add_problems(parse_stats); }
@@ -221,7 +218,8 @@ class VideoSource : public Source {
 /// formats the readers accept are decoded — PNG, PNM (PBM/PGM/PPM), JPEG, BMP, TIFF — and only up to the size limits
 /// of image_header.hpp, checked on the header before anything is allocated. Returns an empty Mat if the bytes are
 /// not such an image or cannot be decoded; `why` (if given) then says which ("cannot be decoded: ...").
-/// This is the decode path of every image reader (read_grey_image).
+/// This is the decode path of every image reader (read_grey_image). 8-bit grey PNGs take a faster path with the
+/// same pixels (png_grey.hpp).
 cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why = nullptr);
 
 /// Reads an image file and decodes it with decode_grey_image; an empty Mat if it is missing or cannot be decoded

@@ -3,7 +3,7 @@
 set -euo pipefail
 packages=(
   cmake g++ ninja-build pkg-config ccache
-  libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
+  libeigen3-dev libopencv-dev libdeflate-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
   libcivetweb-dev nodejs
   # ROS1 (optional at build time, RTSLAM_WITH_ROS; docs/ros.md): bags, the rtslam_ros node, rosmaster for its test

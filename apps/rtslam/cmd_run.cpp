@@ -30,6 +30,7 @@
 
 #include "calibration_prepass.hpp"
 #include "commands.hpp"
+#include "prefetch_option.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/eval/metrics.hpp"
 #include "rtslam/eval/run_eval.hpp"
@@ -73,6 +74,7 @@ struct RunOptions {
   bool force = false;                  // --force: replace the outputs of an earlier run in --out
   io::DatasetOptions input;            // --bad-input, --calibration, --timestamps, --max-imu-dropout, bag topics
   std::optional<double> realtime;      // --realtime [SPEED]: replay at the sensor clock × SPEED, drop late images
+  int prefetch = -1;                   // --prefetch N / --no-prefetch (prefetch_option.hpp)
 };
 
 // The files of a run in --out (and their .tmp), besides overlays/, overlay_NNNNN.png and the --video file there.
@@ -414,6 +416,7 @@ void run_dataset(const RunOptions& ro) {
   if (simulated && (ro.start_at_s > 0.0 || ro.stop_after_s > 0.0)) {
     ds.source = std::make_unique<io::WindowSource>(std::move(ds.source), ro.start_at_s, ro.stop_after_s);
   }
+  io::start_prefetch(ds.source, ro.prefetch);  // decoding (rendering) in worker threads; the stream is the same
   // Calibration check (inertial runs): a pre-pass over the dataset opened again; the run's stream timing recorded.
   std::string calibration_skipped;
   const auto calibration = calibration_prepass(ro.dataset, dopt, o, simulated, calibration_skipped);
@@ -786,6 +789,7 @@ void register_run(CLI::App& app) {
   sub->add_flag("--bag-receive-time", opts->input.bag_receive_time,
                 "ROS bags: stamp measurements with the bag's receive times instead of the header stamps");
   sub->add_flag("--quiet", opts->quiet, "No progress line");
+  add_prefetch_options(*sub, opts->prefetch);
   sub->add_flag("--force", opts->force,
                 "Replace the outputs of an earlier run in --out (exactly rtslam's files: config.yaml, trajectory.*, "
                 "groundtruth.txt, frames.csv, map.ply, summary.json, overlays/, overlay_*.png, the --video file "

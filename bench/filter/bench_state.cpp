@@ -180,3 +180,46 @@ void BM_FrameCorrections(benchmark::State& st) {
 BENCHMARK(BM_FrameCorrections)->Arg(1)->Arg(0)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
+
+// The cost of one image's correction as the map grows (docs/performance.md): a batched correction of k landmarks
+// (m = 2k rows) over a state of n covariance rows (robot 12 + Euclidean landmarks, every one correlated with the
+// robot), then the covariance brought up to date (the deferred downdate, as the next prediction does). The dense
+// work is the downdate P ← P − W Wᵀ, n²·m/2 multiply-adds on the lower triangle, and P Hᵀ (n·m·(6 + 3) reads):
+// the counter `per_n2m` is the time divided by n²·m, flat when the O(n²·m) bound is what costs.
+// Run: build/bench/filter/bench_filter --benchmark_filter=CostVsMapSize --benchmark_repetitions=3
+//        --benchmark_report_aggregates_only=true
+void BM_CostVsMapSize(benchmark::State& st) {
+  const int n = static_cast<int>(st.range(0));
+  const int k = static_cast<int>(st.range(1));
+  Fixture f(n);
+  std::vector<BlockId> blocks = {f.robot};
+  for (int i = 0; i < k; ++i) blocks.push_back(f.landmarks[static_cast<size_t>(i)]);
+  MatrixXd H = MatrixXd::Zero(2 * k, 12 + 3 * k);
+  for (int i = 0; i < k; ++i) {
+    H.block(2 * i, 0, 2, 6).setConstant(0.1);
+    H(2 * i, 12 + 3 * i) = 1.0;
+    H(2 * i + 1, 12 + 3 * i + 1) = 1.0;
+    H(2 * i, 12 + 3 * i + 2) = 0.2;
+  }
+  const VectorXd y = VectorXd::Constant(2 * k, 1e-3);
+  const MatrixXd R = 1e6 * MatrixXd::Identity(2 * k, 2 * k);  // weak: the state barely changes across iterations
+  for (auto _ : st) {
+    const auto res = f.state.correct(blocks, H, y, R);
+    f.state.apply_pending();
+    benchmark::DoNotOptimize(res);
+  }
+  const double n2m = static_cast<double>(f.state.tangent_used()) * f.state.tangent_used() * 2.0 * k;
+  st.counters["rows"] = f.state.tangent_used();
+  st.counters["m"] = 2.0 * k;
+  st.counters["per_n2m"] = benchmark::Counter(n2m, benchmark::Counter::kIsIterationInvariantRate |
+                                                        benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_CostVsMapSize)
+    ->Apply([](benchmark::internal::Benchmark* b) {
+      for (int k : {1, 5, 12, 22}) {  // 22: the one-point RANSAC support set of a high-dynamic image
+        for (int n = 50; n <= 500; n += 50) {
+          if (k <= (n - 12) / 3) b->Args({n, k});
+        }
+      }
+    })
+    ->Unit(benchmark::kMicrosecond);

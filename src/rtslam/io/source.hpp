@@ -66,6 +66,20 @@ TimeNs time_of(const Measurement& m);
 
 enum class BadInputPolicy { Error, Skip };
 
+/// Decoding ahead of the consumer (Source::prefetch): `threads` worker threads decode the next images of the stream
+/// while the consumer processes earlier ones; at most `depth` images are decoded ahead (0: 4 per thread), so the
+/// memory held is about (depth + threads) decoded images plus one encoded file per thread (752x480 grey: 0.36 MB
+/// an image; 2 threads, depth 8: under 4 MB). The stream itself does not change (same measurements, same order,
+/// same errors at the same point).
+struct PrefetchOptions {
+  int threads = 0;        // 0: off
+  std::size_t depth = 0;  // images decoded ahead at most (0: 4 * threads)
+};
+
+/// The default number of decoding threads: one per hardware thread when there is more than one (capped at 4),
+/// 0 (off) on one core, where a decoding thread could only take time from the filter.
+int default_prefetch_threads();
+
 /// Parses "error" / "skip" (ConfigError naming `where` otherwise).
 BadInputPolicy bad_input_policy_from_string(const std::string& s, const std::string& where = "bad_input");
 
@@ -120,6 +134,10 @@ class Source {
   /// Moves the stream to its first measurement at or after t without decoding what it passes; false when the
   /// source cannot (callers then read and drop).
   virtual bool seek(TimeNs /*t*/) { return false; }
+  /// Starts decoding images ahead of next() in worker threads (PrefetchOptions); call before the first next().
+  /// The stream is unchanged: the same measurements in the same order, bad input reported (or skipped) at the same
+  /// point. False when the source cannot (it is then read as before); wrappers forward to their inner source.
+  virtual bool prefetch(const PrefetchOptions& /*options*/) { return false; }
 };
 
 /// A window [first + start_offset, first + start_offset + duration] of another stream (`first`: the time of its
@@ -131,6 +149,7 @@ class WindowSource final : public Source {
   std::optional<Measurement> next() override;
   const SourceStats& stats() const override { return inner_->stats(); }
   std::optional<std::size_t> image_count() const override;
+  bool prefetch(const PrefetchOptions& options) override { return inner_->prefetch(options); }
 
  private:
   std::unique_ptr<Source> inner_;
@@ -156,6 +175,8 @@ struct StreamCheckOptions {
   ImuRange imu_range;          // samples beyond it are bad input (counted as imu_saturated)
 };
 
+class DecodeAhead;  // prefetch.hpp
+
 /// A stream built from in-memory IMU samples and a list of image files (decoded lazily). The constructor checks
 /// each stream (order, duplicates, gaps, missing files) and merges them in time order. Every reader except video
 /// builds one of these; the simulator can too.
@@ -169,6 +190,9 @@ class IndexedSource : public Source {
   const SourceStats& stats() const override { return stats_; }
   std::optional<std::size_t> image_count() const override { return images_.size(); }
   bool seek(TimeNs t) override;
+  /// Decodes the image files ahead in worker threads (the checks and the bad-input policy stay in next()).
+  bool prefetch(const PrefetchOptions& options) override;
+  ~IndexedSource() override;
   /// Merges problems a reader met while parsing its lists (they count in stats()).
   void add_parse_problems(const SourceStats& parse_stats) { stats_.add_problems(parse_stats); }
 
@@ -186,6 +210,8 @@ class IndexedSource : public Source {
   std::vector<Item> order_;
   std::size_t pos_ = 0;
   int image_bits_ = 8;  // significant bits of the 16-bit images seen so far (to_grey8)
+  std::unique_ptr<DecodeAhead> decode_ahead_;  // prefetch.hpp; null without prefetch
+  std::vector<std::size_t> decode_index_;      // with prefetch: images_[i] is decode_ahead_'s image decode_index_[i]
 };
 
 /// A video file read with OpenCV. Frame i has t = t0 + i / rate (rate from the option, else the container's fps).
@@ -223,7 +249,8 @@ cv::Mat to_grey8(const cv::Mat& image, std::string* why = nullptr, int* bits = n
 /// the readers accept are decoded — PNG, PNM (PBM/PGM/PPM), JPEG, BMP, TIFF — and only up to the size limits of
 /// image_header.hpp, checked on the header before anything is allocated. Returns an empty Mat if the bytes are not
 /// such an image, cannot be decoded or hold pixels to_grey8 refuses; `why` (if given) then says which ("cannot be
-/// decoded: ..." or "unsupported: ..."). This is the decode path of every image reader (read_grey_image).
+/// decoded: ..." or "unsupported: ..."). This is the decode path of every image reader (read_grey_image). 8-bit grey PNGs take a faster path
+/// with the same pixels (png_grey.hpp).
 cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why = nullptr,
                           int* bits = nullptr);
 

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 #include <fmt/format.h>
 
@@ -82,20 +81,20 @@ void ZeroVelocityUpdater::after_step(slam::Map& map, slam::Robot& robot, const s
   const auto* dm = dynamic_cast<const ActiveSearchDataManager*>(sensor.data_manager());
   if (dm == nullptr || sensor.id() < 0) return;
   if (last_z_.size() <= static_cast<std::size_t>(sensor.id())) last_z_.resize(static_cast<std::size_t>(sensor.id()) + 1);
-  std::vector<Eigen::Vector2d>& last = last_z_[static_cast<std::size_t>(sensor.id())];
-  constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Matched>& last = last_z_[static_cast<std::size_t>(sensor.id())];  // sorted by landmark id
   displacements_.clear();
   for (const auto& m : dm->last_frame()) {
-    if (m.landmark_id < 0) continue;
-    const auto id = static_cast<std::size_t>(m.landmark_id);
-    if (last.size() <= id) last.resize(id + 64, Eigen::Vector2d(kNan, kNan));
-    if (m.matched && !std::isnan(last[id].x())) displacements_.push_back((m.z - last[id]).norm());
+    if (m.landmark_id < 0 || !m.matched) continue;
+    const auto it = std::lower_bound(last.begin(), last.end(), m.landmark_id,
+                                     [](const Matched& a, int id) { return a.id < id; });
+    if (it != last.end() && it->id == m.landmark_id) displacements_.push_back((m.z - it->z).norm());
   }
   // Remember this frame's matches only (a landmark not matched now has no displacement next frame).
-  std::fill(last.begin(), last.end(), Eigen::Vector2d(kNan, kNan));
+  last.clear();
   for (const auto& m : dm->last_frame()) {
-    if (m.landmark_id >= 0 && m.matched) last[static_cast<std::size_t>(m.landmark_id)] = m.z;
+    if (m.landmark_id >= 0 && m.matched) last.push_back(Matched{m.landmark_id, m.z});
   }
+  std::sort(last.begin(), last.end(), [](const Matched& a, const Matched& b) { return a.id < b.id; });
   disparity_ = -1.0;
   if (static_cast<int>(displacements_.size()) < o_.min_matches) return;
   auto mid = displacements_.begin() + static_cast<std::ptrdiff_t>(displacements_.size() / 2);

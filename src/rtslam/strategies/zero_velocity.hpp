@@ -46,8 +46,13 @@ class ZeroVelocityUpdater final : public slam::StepHook {
   bool imu_at_rest(const RingBuffer<slam::ImuData>& inputs, TimeNs t) const;
 
   ZeroVelocityOptions o_;
-  // Per sensor id: the last matched pixel of each landmark id (NaN: not matched then).
-  std::vector<std::vector<Eigen::Vector2d>> last_z_;
+  // Per sensor id: the landmarks matched in its previous frame and their pixels, sorted by id (bounded by the
+  // matches of a frame, whatever the ids grow to over a long run).
+  struct Matched {
+    int id;
+    Eigen::Vector2d z;
+  };
+  std::vector<std::vector<Matched>> last_z_;
   std::vector<double> displacements_;
   Eigen::MatrixXd H_, R_;
   Eigen::VectorXd y_;

@@ -34,6 +34,7 @@
 #include "rtslam/io/source.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/sim/imu.hpp"
+#include "rtslam/sim/odometry.hpp"
 #include "rtslam/sim/renderer.hpp"
 #include "rtslam/sim/trajectory.hpp"
 #include "rtslam/sim/world.hpp"
@@ -56,6 +57,7 @@ struct SimConfig {
   RenderOptions render;
   bool imu_enabled = true;
   ImuSynthOptions imu;
+  OdometrySynthOptions odometry;  // wheel odometry of the robot frame (odometry.hpp; off unless configured)
 
   /// EuRoC MAV cam0 (mav0/cam0/sensor.yaml): 752x480, 20 Hz, radial-tangential, T_BS as T_RS.
   static io::CameraCalibration euroc_cam0();
@@ -94,6 +96,9 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   const std::vector<TimeNs>& image_times() const { return image_times_; }
   /// IMU samples: synthesized (with the true biases), or recorded (biases unknown: zero).
   const std::vector<SynthImuSample>& imu_samples() const { return imu_; }
+  /// Odometry readings (config().odometry.enabled; synthetic trajectories only), streamed by make_source (not
+  /// written by write_euroc).
+  const std::vector<SynthOdometry>& odometry() const { return odometry_; }
   /// Ground truth of R at every IMU sample (at every image without IMU; at the recorded states in recorded mode):
   /// p, q, v, gyro and accel biases.
   const Trajectory& ground_truth() const { return ground_truth_; }
@@ -102,7 +107,7 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   /// Renders image k of camera c (deterministic: its noise seed derives from (seed, k, c)).
   cv::Mat render_image(std::size_t k, int c = 0) const;
 
-  /// An in-memory stream (IMU first at equal timestamps); it keeps this simulation alive.
+  /// An in-memory stream (IMU, then odometry, then images at equal timestamps); it keeps this simulation alive.
   std::unique_ptr<io::Source> make_source() const;
   /// The stream, rig and ground truth as an io::Dataset (kind "sim"), for `rtslam run` with no dataset.
   io::Dataset make_dataset() const;
@@ -124,6 +129,7 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   io::Rig rig_;
   std::vector<TimeNs> image_times_;
   std::vector<SynthImuSample> imu_;
+  std::vector<SynthOdometry> odometry_;
   Trajectory ground_truth_;
 };
 

@@ -45,8 +45,12 @@ double soak_rss_mb() {
   return static_cast<double>(pages_resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
 }
 
-/// Heap bytes in use (glibc's allocator: what was allocated and not freed), in MB.
-double soak_heap_mb() { return static_cast<double>(mallinfo2().uordblks) / (1024.0 * 1024.0); }
+/// Heap bytes in use (glibc's allocator: what was allocated and not freed, in the arenas and in the large blocks it
+/// maps on its own), in MB.
+double soak_heap_mb() {
+  const struct mallinfo2 m = mallinfo2();
+  return static_cast<double>(m.uordblks + m.hblkhd) / (1024.0 * 1024.0);
+}
 
 struct SoakSample {
   double stream_min = 0.0, wall_s = 0.0, rss_mb = 0.0, heap_mb = 0.0, records_mb = 0.0;

@@ -119,6 +119,13 @@ bool ConstantVelocityRobot::predict_to(TimeNs t) {
   return true;
 }
 
+bool ConstantVelocityRobot::pose_rate(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 1>& xi) const {
+  using I = models::ConstantVelocityIndex;
+  const int a = map_->state().block(block_).ambient_offset;
+  xi << mean.segment<3>(a + I::kV), mean.segment<3>(a + I::kW);
+  return true;
+}
+
 namespace {
 // Rows of the global-frame basis [t φ] for a pose [p q] at the start of a robot block (tangent [δp δθ]).
 void pose_nullspace(const Eigen::Vector3d& p, const Eigen::Vector4d& q_wxyz, Eigen::Ref<Eigen::MatrixXd> N) {
@@ -261,6 +268,27 @@ bool InertialRobot::predict_to(TimeNs t) {
   } else {
     state.predict(block_, Phi_, Qacc_);
   }
+  return true;
+}
+
+bool InertialRobot::pose_rate(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 1>& xi) const {
+  using I = models::InertialIndex;
+  // The reading at time_: between the latest sample at or before it and the first one after it.
+  const Sample* after = nullptr;
+  for (std::size_t k = 0; k < pending_.size(); ++k) {
+    if (pending_[k].t > time_) {
+      after = &pending_[k];
+      break;
+    }
+  }
+  const Sample* before = prev_ && prev_->t <= time_ ? &*prev_ : nullptr;
+  Eigen::Vector3d gyro;
+  if (before != nullptr && after != nullptr) gyro = lerp(*before, *after, time_).gyro;
+  else if (before != nullptr) gyro = before->m.gyro;
+  else if (after != nullptr) gyro = after->m.gyro;
+  else return false;
+  const int a = map_->state().block(block_).ambient_offset;
+  xi << mean.segment<3>(a + I::kV), gyro - mean.segment<3>(a + I::kWb);
   return true;
 }
 

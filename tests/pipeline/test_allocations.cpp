@@ -61,9 +61,10 @@ class PreloadedSource final : public io::Source {
   io::SourceStats stats_;
 };
 
-void check_allocations(const std::string& config, double duration_s) {
+void check_allocations(const std::string& config, double duration_s, bool time_offset = false) {
   ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/" + config);
   o.sim_duration_s = duration_s;
+  o.time_offset.estimate = time_offset;
   io::Dataset ds = make_sim_dataset(o);
   ds.source = std::make_unique<PreloadedSource>(*ds.source);
   std::vector<long> per_image;  // allocations between consecutive images (one entry per image taken)
@@ -105,6 +106,11 @@ void check_allocations(const std::string& config, double duration_s) {
 TEST(Allocations, MonocularFramesAllocateOnlyForNewLandmarks) { check_allocations("config/sim_mono.yaml", 8.0); }
 
 TEST(Allocations, InertialFramesAllocateOnlyForNewLandmarks) { check_allocations("config/sim_mono_imu.yaml", 6.0); }
+
+// With the camera–IMU time offset estimated (camera/time_offset): one more block in every observation.
+TEST(Allocations, InertialFramesWithTimeOffsetAllocateOnlyForNewLandmarks) {
+  check_allocations("config/sim_mono_imu.yaml", 6.0, true);
+}
 
 }  // namespace
 }  // namespace rtslam::pipeline

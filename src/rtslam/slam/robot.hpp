@@ -148,8 +148,10 @@ class InertialRobot final : public Robot {
   /// state, every rotation of the world is unobservable, not only the yaw.
   void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const override;
   static filter::BlockLayout static_layout();
-  /// [v; ω_m(t) − ω_b]: v and the gyro bias of the state, the gyro reading at the robot's time interpolated between
-  /// the buffered samples around it. False before any sample.
+  /// [v; ω̄_m − ω_b]: v and the gyro bias of the state, ω̄_m the mean gyro reading over the last prediction
+  /// interval (at least 10 ms; the rotation increment over dt, free of the vibration of single readings); before
+  /// the first such interval, the reading at the robot's time interpolated between the buffered samples around it.
+  /// False before any sample.
   bool pose_rate(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 1>& xi) const override;
   const models::InertialParams& params() const { return params_; }
   long samples_integrated() const { return steps_; }
@@ -168,6 +170,10 @@ class InertialRobot final : public Robot {
   models::Vector19d fej_x_, fej_next_;
   models::Matrix18d F_, Q_, Phi_, Qacc_, tmp_;
   Eigen::Matrix<double, 18, 6> N_;
+  // The mean gyro reading over the last prediction interval(s) spanning at least 10 ms (pose_rate).
+  Eigen::Vector3d gyro_sum_ = Eigen::Vector3d::Zero(), gyro_mean_ = Eigen::Vector3d::Zero();
+  TimeNs gyro_span_ = 0;
+  bool gyro_mean_valid_ = false;
 };
 
 }  // namespace rtslam::slam

@@ -391,10 +391,7 @@ void run_demo(const RunOptions& ro) {
 // none).
 std::string run_search_budget(const RunOptions& ro, std::optional<double> realtime_speed, const io::Dataset& ds,
                               pipeline::ImageSlamOptions& o) {
-  if (ro.search_budget_ms) {
-    o.search.time_budget_ms = *ro.search_budget_ms;
-    return *ro.search_budget_ms > 0.0 ? "--search-budget" : "off";
-  }
+  if (ro.search_budget_ms) return *ro.search_budget_ms > 0.0 ? "--search-budget" : "off";  // set before --dump-config
   if (o.search.time_budget_ms > 0.0) return "config";
   const double rate_hz = ds.rig.cameras.empty() ? 0.0 : ds.rig.cameras.front().rate_hz;
   if (!realtime_speed || !(rate_hz > 0.0)) return "off";
@@ -418,6 +415,7 @@ void run_dataset(const RunOptions& ro) {
     if (!simulated) throw ConfigError("--duration applies to simulated runs only (no --dataset, or sim:PRESET)");
     o.sim_duration_s = *ro.duration_s;
   }
+  if (ro.search_budget_ms) o.search.time_budget_ms = *ro.search_budget_ms;
   if (ro.overlay_frame) {
     o.overlay_frame = *ro.overlay_frame;
     o.overlay_path = fmt::format("{}/overlay_{:05d}.png", ro.out, *ro.overlay_frame);

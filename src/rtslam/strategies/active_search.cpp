@@ -431,6 +431,10 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     while (next < order_.size() && static_cast<int>(batch_.size()) < budget) {
       Candidate& c = *order_[next++];
       if (c.done) continue;
+      if (budget_spent_ && !c.full_searched) {  // the budget is spent: skipped, not even re-predicted
+        ++stats.budget_skipped;
+        continue;
+      }
       slam::Observation& o = *c.obs;
       if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true, lin())) continue;
       slam::compute_innovation_covariance(state, o, opt_.sigma_px, opt_.second_order_depth);

@@ -247,6 +247,9 @@ struct ImageSlam::Impl final : slam::Observer {
     a.health = std::max(a.health, b.health);
     a.reset = a.reset || b.reset;
     a.zero_velocity = a.zero_velocity || b.zero_velocity;
+    a.budget_hit = a.budget_hit || b.budget_hit;
+    a.budget_skipped += b.budget_skipped;
+    a.time_search_ms += b.time_search_ms;
     a.time_predict_ms += b.time_predict_ms;
     a.time_match_ms += b.time_match_ms;
     a.time_ransac_ms += b.time_ransac_ms;

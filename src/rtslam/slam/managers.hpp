@@ -39,6 +39,12 @@ struct FrameStats {
   int nis_count = 0;
   int health = 0;   // slam::Health of the frame (0 ok, 1 lost, 2 diverged) as judged after it
   bool reset = false;  // the robot and the map were re-initialized after this frame
+  // The search's time budget (strategies/active_search.hpp, search/time_budget_ms): whether it ran out in this frame,
+  // the visible landmarks left unsearched because of it, and the search's time (RANSAC + active search + their
+  // corrections, measured by the budget's clock when a budget is set).
+  bool budget_hit = false;
+  int budget_skipped = 0;
+  double time_search_ms = 0.0;
   // Wall times of the frame's stages; predict + match + ransac + update + init + map ≈ total.
   double time_predict_ms = 0.0;  // robots to the datum's time, observation predictions
   double time_match_ms = 0.0;    // appearance matching (ZNCC searches), in every stage

@@ -108,25 +108,21 @@ void AbsoluteDataManager::apply(slam::Map& map, const slam::WorldChange& change)
 
 void AbsoluteDataManager::align_pose(slam::Map& map, const math::Pose& z, const math::Pose& h,
                                      const Eigen::Matrix<double, 6, 6>& R, TimeNs t) {
-  math::Pose T_GW = z * h.inverse();
+  // The whole rotation, also for the inertial robot: its world frame is gravity-aligned only up to its gravity
+  // estimate (a state), which turns with the map (slam::change_world_frame).
   slam::WorldChange c;
+  c.T_GW = z * h.inverse();
   c.center_G = z.p;
-  c.cov.topLeftCorner<3, 3>() = R.topLeftCorner<3, 3>();
-  if (gravity_aligned_) {
-    const Eigen::Matrix3d R_GW = T_GW.q.toRotationMatrix();
-    T_GW.q = Eigen::Quaterniond(yaw_rotation(std::atan2(R_GW(1, 0), R_GW(0, 0))));
-    T_GW.p = z.p - T_GW.q * h.p;
-    c.cov(5, 5) = R(5, 5);
-  } else {
-    c.cov.bottomRightCorner<3, 3>() = R.bottomRightCorner<3, 3>();
-  }
-  c.T_GW = T_GW;
+  // The fix's [δp δθ] (attitude: right perturbation of q_GM) as [δc δφ] (rotation in G): δφ = R_GM δθ.
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Identity();
+  A.bottomRightCorner<3, 3>() = z.q.toRotationMatrix();
+  c.cov = A * R * A.transpose();
   apply(map, c);
   alignment_ = c;
   aligned_ = true;
   aligned_at_ = t;
   logger("slam")->info("t = {:.3f} s: pose sensor: map moved into the sensor's frame (rotated {:.1f} deg, shifted "
-                       "{:.2f} m)", to_seconds(t), math::log_so3(T_GW.q).norm() / kDeg, T_GW.p.norm());
+                       "{:.2f} m)", to_seconds(t), math::log_so3(c.T_GW.q).norm() / kDeg, c.T_GW.p.norm());
 }
 
 void AbsoluteDataManager::align_position(slam::Map& map, const Eigen::Vector3d& z, const Eigen::Vector3d& h,

@@ -11,8 +11,9 @@
 // gravity-aligned with the first pose's origin and yaw for the inertial robot), so with `world: align` (default)
 // the first fixes tell where that frame lies in G and the whole map is moved there once
 // (slam::change_world_frame), with the uncertainty of that alignment added to it:
-//  - pose sensor: at the first fix, T_GW = z h⁻¹ (z = T_GM measured, h = T_WM predicted); for a gravity-aligned
-//    robot (inertial) G must be z-up too and only the yaw of the rotation is kept. Uncertainty: the fix's.
+//  - pose sensor: at the first fix, T_GW = z h⁻¹ (z = T_GM measured, h = T_WM predicted), the whole rotation (the
+//    inertial robot's frame is gravity-aligned only up to its gravity state, which turns with the map). Uncertainty:
+//    the fix's.
 //  - position sensor (inertial robot only: gravity gives roll and pitch, the fixes give yaw and translation): at the
 //    first fix the map is shifted onto it (no uncertainty claimed yet); the following fixes and the predicted antenna
 //    positions are collected until their horizontal spread determines the yaw to `align_yaw_std_deg`

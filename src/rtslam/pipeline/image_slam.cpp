@@ -69,10 +69,6 @@ void ImageSlamOptions::validate() const {
                                                                                               &position_sensor},
                                 {"pose_sensor", &pose_sensor}}) {
     if (!a->enabled) continue;
-    if (consistency == "oc") {
-      throw ConfigError(fmt::format("{}: slam/consistency = oc constrains the world frame's translation and rotation "
-                                    "as unobservable, which an absolute sensor observes: use none or fej", name));
-    }
     if (!known_landmarks.empty() && a->world == "align") {
       throw ConfigError(fmt::format("{}/world = align cannot move a map whose frame slam/known_landmarks defines",
                                     name));

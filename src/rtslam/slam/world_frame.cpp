@@ -31,10 +31,6 @@ void point_rows(const Vector3d& x, const Vector3d& c, Eigen::Ref<MatrixXd> rows)
 std::string change_world_frame(Map& map, const WorldChange& change,
                                const std::function<void(Landmark&, const math::Pose& T_GW)>& on_landmark) {
   filter::State& state = map.state();
-  if (state.nullspace_dim() > 0) {
-    return "the map tracks the unobservable directions of its world frame (slam/consistency: oc), which an absolute "
-           "sensor makes observable";
-  }
   const Matrix3d R = change.T_GW.q.toRotationMatrix();
   const Vector3d& t = change.T_GW.p;
   const Vector3d& c = change.center_G;
@@ -121,6 +117,22 @@ std::string change_world_frame(Map& map, const WorldChange& change,
       state.cov(a.id, b.id) = P_ab;
       if (j != i) state.cov(b.id, a.id) = P_ab.transpose();
       else state.cov(a.id, a.id) = 0.5 * (P_ab + P_ab.transpose());
+    }
+  }
+  // The tracked basis of the world frame's directions (slam/consistency: oc) at the new means: robots give theirs,
+  // points move as δx = t − [x]× φ, AHP directions as δm = −[m]× φ; sensor blocks (in R) have zero rows, unchanged.
+  if (state.nullspace_dim() > 0) {
+    for (const auto& r : map.robots()) {
+      MatrixXd N(state.block(r->block()).tangent_size(), state.nullspace_dim());
+      r->nullspace(state.mean(r->block()), N);
+      state.set_nullspace(r->block(), N);
+    }
+    for (const auto& l : map.landmarks()) {
+      const auto x = state.mean(l->block());
+      MatrixXd N = MatrixXd::Zero(state.block(l->block()).tangent_size(), state.nullspace_dim());
+      point_rows(x.head<3>(), Vector3d::Zero(), N.topRows(3));
+      if (l->type() == LandmarkType::AhpPoint) N.block<3, 3>(3, 3) = -math::skew(x.segment<3>(3));
+      state.set_nullspace(l->block(), N);
     }
   }
   if (on_landmark) {

@@ -32,9 +32,10 @@ struct WorldChange {
 };
 
 /// Re-expresses the map in G (header comment). `on_landmark` is called for every landmark after its block moved
-/// (its descriptor may hold poses in W, e.g. the view a patch was taken from). Returns an empty string, or why the
-/// change is not possible (a robot type it does not know, a map that tracks an unobservable basis: slam/consistency
-/// oc) — the map is then untouched. Allocates: a one-time operation, not for the per-frame path.
+/// (its descriptor may hold poses in W, e.g. the view a patch was taken from). With slam/consistency: oc the tracked basis of the
+/// world frame's directions is recomputed at the new means (camera measurements still cannot observe the world
+/// frame; only the absolute sensor does). Returns an empty string, or why the change is not possible (a robot type
+/// it does not know) — the map is then untouched. Allocates: a one-time operation, not for the per-frame path.
 std::string change_world_frame(Map& map, const WorldChange& change,
                                const std::function<void(Landmark&, const math::Pose& T_GW)>& on_landmark = {});
 

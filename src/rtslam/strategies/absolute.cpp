@@ -1,5 +1,6 @@
 #include "rtslam/strategies/absolute.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -19,6 +20,9 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kChi2_999_3 = 16.266;  // χ² quantiles at 99.9 %, 3 and 6 dof
 constexpr double kChi2_999_6 = 22.458;
+// Position alignment: the fixes' yaw replaces the robot's own (arbitrary) start yaw in the rigid moves before the
+// hand-over once its linearized std is below this (above, σ/√spread no longer describes the estimate).
+constexpr double kProvisionalYawStd = 45.0 * kDeg;
 
 Eigen::Matrix3d yaw_rotation(double psi) { return Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()).toRotationMatrix(); }
 
@@ -90,7 +94,7 @@ AbsoluteDataManager::AbsoluteDataManager(AbsoluteSensorOptions options, bool gra
   H_.setZero(6, filter::StateOptions{}.max_block_tangent);
   R_.setZero(6, 6);
   y_.setZero(6);
-  fixes_.reserve(static_cast<std::size_t>(o_.align_min_fixes) * 4);
+  fixes_.reserve(std::max<std::size_t>(static_cast<std::size_t>(o_.align_min_fixes), 1024));
   predicted_.reserve(fixes_.capacity());
 }
 
@@ -127,21 +131,12 @@ void AbsoluteDataManager::align_pose(slam::Map& map, const math::Pose& z, const 
 
 void AbsoluteDataManager::align_position(slam::Map& map, const Eigen::Vector3d& z, const Eigen::Vector3d& h,
                                          double sigma, TimeNs t) {
-  if (!shifted_) {
-    // The first fix: shift the map onto it (no uncertainty claimed: the yaw is still the robot's own).
-    slam::WorldChange c;
-    c.T_GW.p = z - h;
-    c.center_G = z;
-    apply(map, c);
-    shifted_ = true;
-    fixes_.push_back(z);
-    predicted_.push_back(z);
-    return;
-  }
+  // Every fix before the hand-over: the rigid yaw-and-translation move that best puts the predicted antenna
+  // positions (in the start frame W0: h0 = T_moved⁻¹ h) onto the fixes, applied to the map without any claimed
+  // uncertainty (a rigid move is exact: no linearization of a large yaw correction in the filter).
   fixes_.push_back(z);
-  predicted_.push_back(h);
+  predicted_.push_back(T_moved_.inverse_transform(h));
   const auto n = static_cast<double>(fixes_.size());
-  if (fixes_.size() < static_cast<std::size_t>(o_.align_min_fixes)) return;
   Eigen::Vector3d zbar = Eigen::Vector3d::Zero(), hbar = Eigen::Vector3d::Zero();
   for (std::size_t k = 0; k < fixes_.size(); ++k) {
     zbar += fixes_[k] / n;
@@ -154,21 +149,34 @@ void AbsoluteDataManager::align_position(slam::Map& map, const Eigen::Vector3d& 
     s_sin += a.x() * b.y() - a.y() * b.x();
     s_cos += a.x() * b.x() + a.y() * b.y();
   }
-  const double yaw_std = sigma / std::sqrt(std::max(spread, 1e-12));
-  if (yaw_std > o_.align_yaw_std_deg * kDeg) return;
-  const double psi = std::atan2(s_sin, s_cos);
+  const double yaw_std = spread > 0.0 ? sigma / std::sqrt(spread) : M_PI;
+  const bool enough = fixes_.size() >= static_cast<std::size_t>(o_.align_min_fixes);
+  const Eigen::Matrix3d R_moved = T_moved_.q.toRotationMatrix();
+  double psi = std::atan2(R_moved(1, 0), R_moved(0, 0));  // the yaw so far (the robot's own until the fixes tell)
+  if (enough && yaw_std <= kProvisionalYawStd) psi = std::atan2(s_sin, s_cos);
+  math::Pose target;
+  target.q = Eigen::Quaterniond(yaw_rotation(psi));
+  target.p = zbar - target.q * hbar;
+  const bool hand_over = enough && yaw_std <= o_.align_yaw_std_deg * kDeg;
   slam::WorldChange c;
-  c.T_GW.q = Eigen::Quaterniond(yaw_rotation(psi));
-  c.T_GW.p = zbar - c.T_GW.q * hbar;
+  c.T_GW = target * T_moved_.inverse();
+  c.T_GW.q.normalize();
   c.center_G = zbar;
-  c.cov.topLeftCorner<3, 3>() = (sigma * sigma / n) * Eigen::Matrix3d::Identity();
-  c.cov(5, 5) = yaw_std * yaw_std;
+  if (hand_over) {  // from now on the filter refines yaw and translation: their uncertainty enters the map
+    c.cov.topLeftCorner<3, 3>() = (sigma * sigma / n) * Eigen::Matrix3d::Identity();
+    c.cov(5, 5) = yaw_std * yaw_std;
+  }
   apply(map, c);
-  alignment_ = c;
+  T_moved_ = target;
+  if (!hand_over) return;
+  alignment_.T_GW = target;
+  alignment_.center_G = zbar;
+  alignment_.cov = c.cov;
   aligned_ = true;
   aligned_at_ = t;
-  logger("slam")->info("t = {:.3f} s: position sensor: map aligned with {} fixes (yaw {:.1f} ± {:.1f} deg, shift "
-                       "{:.2f} m)", to_seconds(t), fixes_.size(), psi / kDeg, yaw_std / kDeg, (zbar - hbar).norm());
+  logger("slam")->info("t = {:.3f} s: position sensor: map aligned with {} fixes (yaw {:.1f} ± {:.1f} deg from the "
+                       "start frame, shift {:.2f} m); the filter takes the fixes from now on",
+                       to_seconds(t), fixes_.size(), psi / kDeg, yaw_std / kDeg, target.p.norm());
   fixes_.clear();
   predicted_.clear();
 }

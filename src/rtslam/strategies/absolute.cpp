@@ -46,7 +46,7 @@ void AbsoluteSensorOptions::validate(const std::string& w) const {
   }
   require_bound(gate >= 0.0 && gate <= 1e6, w, "gate", gate, "in [0, 1e6] (0: the χ² 99.9 % quantile)");
   if (world != "align" && world != "start")
-    throw ConfigError(fmt::format("{}/world = '{}' must be align or start", w, world));
+    throw ConfigError(fmt::format("{}: world = '{}' must be align or start", w, world));
   require_bound(align_yaw_std_deg > 0.0 && align_yaw_std_deg <= 45.0, w, "align_yaw_std_deg", align_yaw_std_deg,
                 "in (0, 45] deg");
   require_bound(align_min_fixes >= 2 && align_min_fixes <= 100000, w, "align_min_fixes", align_min_fixes,
@@ -66,8 +66,7 @@ void read_absolute_sensor(YamlMap m, AbsoluteSensorOptions& o, bool pose) {
     m.get("align_yaw_std_deg", o.align_yaw_std_deg);
     m.get("align_min_fixes", o.align_min_fixes);
   }
-  m.finish();
-  validate_in_file(m.file(), [&] { o.validate(m.where()); });
+  m.finish();  // validated with the whole configuration (ImageSlamOptions::validate), which names the file
 }
 
 YAML::Node absolute_sensor_to_yaml(const AbsoluteSensorOptions& o, bool pose) {

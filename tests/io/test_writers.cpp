@@ -205,6 +205,8 @@ TEST(FramesCsv, RoundTripsEveryField) {
     s.nis_count = 9;
     s.health = static_cast<int>(i % 3);
     s.reset = i == 2;
+    s.absolute_updates = 5 + static_cast<int>(i);
+    s.absolute_rejected = static_cast<int>(i % 2);
   }
   {
     FramesCsvWriter w(dir / "frames.csv");
@@ -228,6 +230,8 @@ TEST(FramesCsv, RoundTripsEveryField) {
     EXPECT_EQ(back[i].nis_count, rows[i].nis_count);
     EXPECT_EQ(back[i].health, rows[i].health);
     EXPECT_EQ(back[i].reset, rows[i].reset);
+    EXPECT_EQ(back[i].absolute_updates, rows[i].absolute_updates);
+    EXPECT_EQ(back[i].absolute_rejected, rows[i].absolute_rejected);
   }
   EXPECT_EQ(test::read_text(dir / "frames.csv").rfind(FramesCsvWriter::header(), 0), 0u);
 }

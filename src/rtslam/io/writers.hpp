@@ -97,6 +97,8 @@ struct FrameStats {
   int nis_count = 0;
   int health = 0;            // 0 ok, 1 tracking lost, 2 diverged (slam/health.hpp)
   bool reset = false;        // the robot and the map were re-initialized after this frame
+  int absolute_updates = 0;  // absolute position/pose fixes applied since the previous frame (and gated out)
+  int absolute_rejected = 0;
 };
 
 /// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), into frames.csv.tmp

@@ -278,17 +278,16 @@ struct ImageSlam::Impl final : slam::Observer {
   }
 
   void on_step(const slam::StepReport& s) override {
-    if (!s.stats.landmark_frame) {  // an absolute fix: counted in the frame before it, no pose of its own
-      if (!result.frames.empty()) {
-        result.frames.back().absolute_updates += s.stats.absolute_updates;
-        result.frames.back().absolute_rejected += s.stats.absolute_rejected;
-        result.frames.back().refused += s.stats.refused;
-      }
+    if (!s.stats.landmark_frame) {  // an absolute fix: no pose of its own, counted in the next frame
+      fixes_since_frame.absolute_updates += s.stats.absolute_updates;
+      fixes_since_frame.absolute_rejected += s.stats.absolute_rejected;
+      fixes_since_frame.refused += s.stats.refused;
       return;
     }
     const bool same_time = !result.frames.empty() && result.frames.back().t == s.raw.t;
     if (same_time) merge(result.frames.back(), s.stats);
     else result.frames.push_back(s.stats);
+    take_fixes(result.frames.back());
     const slam::FrameStats& fs = result.frames.back();
     StampedPose& est = same_time ? result.estimate.poses.back() : result.estimate.poses.emplace_back();
     est.t = s.raw.t;
@@ -316,6 +315,14 @@ struct ImageSlam::Impl final : slam::Observer {
       if (overlay) write_overlay(o.overlay_path, f, o.search.n_sigma);
       if (observer) observer(f);
     }
+  }
+
+  // The absolute fixes since the last frame go into the next one (its row of frames.csv is written after it).
+  void take_fixes(slam::FrameStats& f) {
+    f.absolute_updates += fixes_since_frame.absolute_updates;
+    f.absolute_rejected += fixes_since_frame.absolute_rejected;
+    f.refused += fixes_since_frame.refused;
+    fixes_since_frame = {};
   }
 
   void feed_image(std::unique_ptr<MatImage> d, const std::string& path) {
@@ -408,6 +415,7 @@ struct ImageSlam::Impl final : slam::Observer {
   }
 
   ImageSlamResult finish() {
+    if (!result.frames.empty()) take_fixes(result.frames.back());  // fixes after the last frame
     const slam::System& system = *built.system;
     const slam::Map& map = *built.map;
     const slam::Robot& robot = *built.robot;
@@ -487,6 +495,7 @@ struct ImageSlam::Impl final : slam::Observer {
   std::vector<std::unique_ptr<MatImage>> held;  // several cameras: images of one time not fed yet
   std::vector<std::string> held_paths;
   std::optional<TimeNs> observed_t;             // the time the observer last saw
+  slam::FrameStats fixes_since_frame;           // absolute fixes since the last frame (their counters only)
   bool inertial = false;
   TimeNs t_d = 0;  // t_imu = t_cam + t_d
   double gyro_full_scale = 0.0, accel_full_scale = 0.0;  // 0: unknown

@@ -320,6 +320,8 @@ io::FrameStats to_io(const slam::FrameStats& s) {
   f.budget_hit = s.budget_hit;
   f.budget_skipped = s.budget_skipped;
   f.t_search_ms = s.time_search_ms;
+  f.absolute_updates = s.absolute_updates;
+  f.absolute_rejected = s.absolute_rejected;
   return f;
 }
 
@@ -559,10 +561,12 @@ void run_dataset(const RunOptions& ro) {
       }
     }
     {
-      long refused = 0, without_search = 0, nis_n = 0;
+      long refused = 0, without_search = 0, nis_n = 0, abs_updates = 0, abs_rejected = 0;
       double nis_sum = 0.0;
       for (const auto& f : result.frames) {
         refused += f.refused;
+        abs_updates += f.absolute_updates;
+        abs_rejected += f.absolute_rejected;
         without_search += f.searched == 0 ? 1 : 0;
         nis_sum += f.nis;
         nis_n += f.nis_count;
@@ -575,6 +579,9 @@ void run_dataset(const RunOptions& ro) {
                            {"frames_without_search", without_search},
                            {"corrections_refused", refused},
                            {"mean_nis_per_dof", nis_n > 0 ? nis_sum / (2.0 * static_cast<double>(nis_n)) : 0.0}};
+      if (o.position_sensor.enabled || o.pose_sensor.enabled) {
+        summary["absolute"] = {{"corrections_applied", abs_updates}, {"corrections_rejected", abs_rejected}};
+      }
     }
     summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
     summary["input"] = ds.source->stats().to_json();

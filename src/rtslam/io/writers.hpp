@@ -100,6 +100,8 @@ struct FrameStats {
   bool budget_hit = false;   // the search's time budget ran out (search/time_budget_ms)
   int budget_skipped = 0;    // visible landmarks left unsearched because of it
   double t_search_ms = 0.0;  // the search's time (RANSAC + active search + their corrections)
+  int absolute_updates = 0;  // absolute position/pose fixes applied since the previous frame (and gated out)
+  int absolute_rejected = 0;
 };
 
 /// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), into frames.csv.tmp

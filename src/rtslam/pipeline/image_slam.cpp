@@ -63,6 +63,21 @@ void ImageSlamOptions::validate() const {
   map.validate();
   health.validate();
   zero_velocity.validate();
+  position_sensor.validate("position_sensor");
+  pose_sensor.validate("pose_sensor");
+  for (const auto& [name, a] : {std::pair<const char*, const strategies::AbsoluteSensorOptions*>{"position_sensor",
+                                                                                              &position_sensor},
+                                {"pose_sensor", &pose_sensor}}) {
+    if (!a->enabled) continue;
+    if (!known_landmarks.empty() && a->world == "align") {
+      throw ConfigError(fmt::format("{}/world = align cannot move a map whose frame slam/known_landmarks defines",
+                                    name));
+    }
+  }
+  if (position_sensor.enabled && position_sensor.world == "align" && robot != "inertial") {
+    throw ConfigError("position_sensor/world = align needs slam/robot = inertial (gravity gives roll and pitch, the "
+                      "fixes yaw and translation); with another robot give the frame: world = start");
+  }
 }
 
 std::vector<int> ImageSlamOptions::camera_indices() const {
@@ -109,6 +124,8 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
   read_map_policy(top.child("map_manager"), o.map);
   slam::read_health(top.child("health"), o.health);
   strategies::read_zero_velocity(top.child("zero_velocity"), o.zero_velocity);
+  if (top.has("position_sensor")) strategies::read_absolute_sensor(top.child("position_sensor"), o.position_sensor, false);
+  if (top.has("pose_sensor")) strategies::read_absolute_sensor(top.child("pose_sensor"), o.pose_sensor, true);
   {
     YamlMap s = top.child("simulation");
     s.get("preset", o.sim_preset);
@@ -153,6 +170,8 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["map_manager"] = map_policy_to_yaml(o.map);
   root["health"] = slam::health_to_yaml(o.health);
   root["zero_velocity"] = strategies::zero_velocity_to_yaml(o.zero_velocity);
+  root["position_sensor"] = strategies::absolute_sensor_to_yaml(o.position_sensor, false);
+  root["pose_sensor"] = strategies::absolute_sensor_to_yaml(o.pose_sensor, true);
   root["simulation"]["preset"] = o.sim_preset;
   root["simulation"]["duration"] = o.sim_duration_s;
   return root;
@@ -242,6 +261,8 @@ struct ImageSlam::Impl final : slam::Observer {
     a.removed += b.removed;
     a.evicted += b.evicted;
     a.refused += b.refused;
+    a.absolute_updates += b.absolute_updates;
+    a.absolute_rejected += b.absolute_rejected;
     a.nis += b.nis;
     a.nis_count += b.nis_count;
     a.health = std::max(a.health, b.health);
@@ -260,9 +281,16 @@ struct ImageSlam::Impl final : slam::Observer {
   }
 
   void on_step(const slam::StepReport& s) override {
+    if (!s.stats.landmark_frame) {  // an absolute fix: no pose of its own, counted in the next frame
+      fixes_since_frame.absolute_updates += s.stats.absolute_updates;
+      fixes_since_frame.absolute_rejected += s.stats.absolute_rejected;
+      fixes_since_frame.refused += s.stats.refused;
+      return;
+    }
     const bool same_time = !result.frames.empty() && result.frames.back().t == s.raw.t;
     if (same_time) merge(result.frames.back(), s.stats);
     else result.frames.push_back(s.stats);
+    take_fixes(result.frames.back());
     const slam::FrameStats& fs = result.frames.back();
     StampedPose& est = same_time ? result.estimate.poses.back() : result.estimate.poses.emplace_back();
     est.t = s.raw.t;
@@ -290,6 +318,14 @@ struct ImageSlam::Impl final : slam::Observer {
       if (overlay) write_overlay(o.overlay_path, f, o.search.n_sigma);
       if (observer) observer(f);
     }
+  }
+
+  // The absolute fixes since the last frame go into the next one (its row of frames.csv is written after it).
+  void take_fixes(slam::FrameStats& f) {
+    f.absolute_updates += fixes_since_frame.absolute_updates;
+    f.absolute_rejected += fixes_since_frame.absolute_rejected;
+    f.refused += fixes_since_frame.refused;
+    fixes_since_frame = {};
   }
 
   void feed_image(std::unique_ptr<MatImage> d, const std::string& path) {
@@ -336,6 +372,28 @@ struct ImageSlam::Impl final : slam::Observer {
       system.feed(std::move(d));
       return true;
     }
+    if (const auto* fix = std::get_if<io::PositionSample>(&*m)) {
+      flush_held();
+      if (built.position_sensor == nullptr) return true;
+      auto d = system.spare<slam::PositionData>();
+      d->t = fix->t;
+      d->sensor_id = built.position_sensor->id();
+      d->p_WA = fix->p;
+      d->has_cov = false;
+      system.feed(std::move(d));
+      return true;
+    }
+    if (const auto* fix = std::get_if<io::PoseSample>(&*m)) {
+      flush_held();
+      if (built.pose_sensor == nullptr) return true;
+      auto d = system.spare<slam::PoseData>();
+      d->t = fix->t;
+      d->sensor_id = built.pose_sensor->id();
+      d->T_WM = math::Pose{fix->q, fix->p};
+      d->has_cov = false;
+      system.feed(std::move(d));
+      return true;
+    }
     auto* frame = std::get_if<io::ImageFrame>(&*m);
     if (frame == nullptr) return true;
     const BuiltCamera* cam = frame->camera >= 0 && static_cast<std::size_t>(frame->camera) < by_rig_index.size()
@@ -360,6 +418,7 @@ struct ImageSlam::Impl final : slam::Observer {
   }
 
   ImageSlamResult finish() {
+    if (!result.frames.empty()) take_fixes(result.frames.back());  // fixes after the last frame
     const slam::System& system = *built.system;
     const slam::Map& map = *built.map;
     const slam::Robot& robot = *built.robot;
@@ -439,6 +498,7 @@ struct ImageSlam::Impl final : slam::Observer {
   std::vector<std::unique_ptr<MatImage>> held;  // several cameras: images of one time not fed yet
   std::vector<std::string> held_paths;
   std::optional<TimeNs> observed_t;             // the time the observer last saw
+  slam::FrameStats fixes_since_frame;           // absolute fixes since the last frame (their counters only)
   bool inertial = false;
   TimeNs t_d = 0;  // t_imu = t_cam + t_d
   double gyro_full_scale = 0.0, accel_full_scale = 0.0;  // 0: unknown

@@ -32,6 +32,11 @@ struct FrameStats {
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map
   int refused = 0;  // corrections the filter refused (S not positive definite, a variance would turn negative)
+  // The datum's sensor observes landmarks (a camera). False for absolute sensors (slam/absolute_sensor.hpp): the
+  // health monitor then judges only the state, not the tracking (no landmark is expected to be matched).
+  bool landmark_frame = true;
+  int absolute_updates = 0;   // absolute position/pose corrections applied (strategies/absolute.hpp)
+  int absolute_rejected = 0;  // absolute corrections gated out or refused by the filter
   bool zero_velocity = false;  // a zero-velocity update was applied after the frame (strategies/zero_velocity.hpp)
   // Normalized innovation squared (z − h₀)ᵀ S₀⁻¹ (z − h₀) of the matched observations at their first prediction of
   // the frame, summed, and their number (2 dof each): the health monitor's consistency signal.

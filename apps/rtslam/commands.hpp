@@ -19,5 +19,6 @@ void register_bench(CLI::App& app);
 void register_imu_noise(CLI::App& app);
 void register_view(CLI::App& app);
 void register_check_calibration(CLI::App& app);
+void register_soak(CLI::App& app);
 
 }  // namespace rtslam::cli

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   rtslam::cli::register_imu_noise(app);
   rtslam::cli::register_view(app);
   rtslam::cli::register_check_calibration(app);
+  rtslam::cli::register_soak(app);
 
   try {
     app.parse(argc, argv);

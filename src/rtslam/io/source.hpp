@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
@@ -40,7 +41,20 @@ struct ImageFrame {
   std::string path;   // file it came from ("video.mp4#123" for video frames)
 };
 
-using Measurement = std::variant<ImuSample, ImageFrame>;
+/// One absolute position fix (GPS-like): the antenna position in the sensor's world frame (m).
+struct PositionSample {
+  TimeNs t = 0;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+};
+
+/// One absolute pose (motion capture): the marker body's pose T_GM in the sensor's world frame.
+struct PoseSample {
+  TimeNs t = 0;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+};
+
+using Measurement = std::variant<ImuSample, ImageFrame, PositionSample, PoseSample>;
 
 /// The range of an IMU's readings, per axis. A reading beyond it is saturated or corrupt: its true value is unknown,
 /// so it must never reach the integrator as if it were measured. Without a calibrated full scale the range is the

@@ -5,7 +5,9 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/pipeline/starters.hpp"
+#include "rtslam/slam/absolute_sensor.hpp"
 #include "rtslam/slam/time_offset.hpp"
+#include "rtslam/strategies/absolute.hpp"
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
@@ -165,6 +167,19 @@ BuiltSystem Registry::build(const BuildContext& c) const {
     }
     cam.sensor->set_data_manager(std::move(dm));
     b.cameras.push_back(cam);
+  }
+  // Absolute sensors: their own data manager each (strategies/absolute.hpp).
+  const bool gravity_aligned = o.robot == "inertial";
+  if (o.position_sensor.enabled) {
+    b.position_sensor = &robot->add_sensor(std::make_unique<slam::AbsoluteSensor>(
+        "position", slam::AbsoluteSensor::Kind::Position, o.position_sensor.T_RS()));
+    b.position_sensor->set_data_manager(
+        std::make_unique<strategies::AbsoluteDataManager>(o.position_sensor, gravity_aligned));
+  }
+  if (o.pose_sensor.enabled) {
+    b.pose_sensor = &robot->add_sensor(
+        std::make_unique<slam::AbsoluteSensor>("pose", slam::AbsoluteSensor::Kind::Pose, o.pose_sensor.T_RS()));
+    b.pose_sensor->set_data_manager(std::make_unique<strategies::AbsoluteDataManager>(o.pose_sensor, gravity_aligned));
   }
   if (o.consistency == "fej") robot->set_first_estimate_jacobians(true);
   b.robot = robot.get();

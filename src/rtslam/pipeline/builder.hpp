@@ -48,6 +48,9 @@ struct BuiltSystem {
   int input_id = -1;  // the robot's proprioceptive stream (slam::ImuData::sensor_id)
   std::vector<BuiltCamera> cameras;
   const slam::MapManager* map_manager = nullptr;
+  // Absolute sensors (position_sensor / pose_sensor enabled), else null.
+  slam::Sensor* position_sensor = nullptr;
+  slam::Sensor* pose_sensor = nullptr;
 };
 
 class Registry {

@@ -23,6 +23,7 @@
 //                 min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
 //   health:      see slam/health.hpp               (divergence and lost-tracking detection, recovery)
 //   zero_velocity: see strategies/zero_velocity.hpp (updates v = 0 when the IMU and the images say "at rest")
+//   position_sensor, pose_sensor: see strategies/absolute.hpp (GPS-like position, motion-capture pose)
 //   camera:      {time_offset: see slam/time_offset.hpp}  (online camera–IMU time offset, inertial robot)
 //   simulation:  {preset, duration, camera_time_offset_ms}   (only for runs on the simulator: `rtslam run` without
 //                --dataset)
@@ -45,6 +46,7 @@
 #include "rtslam/slam/health.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/slam/time_offset.hpp"
+#include "rtslam/strategies/absolute.hpp"
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
@@ -87,6 +89,13 @@ struct ImageSlamOptions {
   slam::HealthOptions health;
   strategies::ZeroVelocityOptions zero_velocity;  // zero-velocity updates at rest (strategies/zero_velocity.hpp)
   slam::TimeOffsetOptions time_offset;  // camera/time_offset: each camera's t_d estimated online (slam/time_offset.hpp)
+  // Absolute sensors on the robot (strategies/absolute.hpp): a GPS-like antenna position, a motion-capture pose.
+  strategies::AbsoluteSensorOptions position_sensor;
+  strategies::AbsoluteSensorOptions pose_sensor = [] {
+    strategies::AbsoluteSensorOptions p;
+    p.sigma_m = 0.005;
+    return p;
+  }();
   void validate() const;
   /// The cameras used: `cameras`, or {camera}.
   std::vector<int> camera_indices() const;

@@ -89,6 +89,8 @@ void ViInitOptions::validate() const {
                 max_split_gravity_deg, "in (0, 90] deg");
   require_bound(max_split_velocity_ratio > 0.0 && max_split_velocity_ratio <= 10.0, w, "max_split_velocity_ratio",
                 max_split_velocity_ratio, "in (0, 10]");
+  require_bound(accel_bias_std > 0.0 && accel_bias_std <= 10.0, w, "accel_bias_std", accel_bias_std,
+                "in (0, 10] m/s²");
 }
 
 void read_vi_init(YamlMap m, ViInitOptions& o) {
@@ -113,6 +115,7 @@ void read_vi_init(YamlMap m, ViInitOptions& o) {
   m.get("max_split_gravity_deg", o.max_split_gravity_deg);
   m.get("max_split_velocity_ratio", o.max_split_velocity_ratio);
   m.get("refine_gyro_bias", o.refine_gyro_bias);
+  m.get("accel_bias_std", o.accel_bias_std);
   m.finish();
 }
 
@@ -139,6 +142,7 @@ YAML::Node vi_init_to_yaml(const ViInitOptions& o) {
   n["max_split_gravity_deg"] = o.max_split_gravity_deg;
   n["max_split_velocity_ratio"] = o.max_split_velocity_ratio;
   n["refine_gyro_bias"] = o.refine_gyro_bias;
+  n["accel_bias_std"] = o.accel_bias_std;
   return n;
 }
 
@@ -165,7 +169,6 @@ void read_inertial(YamlMap m, InertialOptions& o) {
     YamlMap c = m.child("calibration_check");
     o.calibration_check = calib::CheckOptions::from_yaml(c);
   }
-  o.vi_init.accel_bias_std = o.accel_bias_std;  // the refinement's prior is the filter's
   double v = 0.0;
   if (m.has("time_offset")) { m.get("time_offset", v); o.time_offset_s = v; }
   if (m.has("accelerometer_noise_density")) { m.get("accelerometer_noise_density", v); o.accelerometer_noise_density = v; }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <numbers>
 #include <utility>
 #include <variant>
@@ -174,6 +175,12 @@ SimConfig SimConfig::from_yaml(YamlMap& m, SimConfig c, const std::string& dir) 
     im.finish();
   }
   m.get("threads", c.render.threads);
+  for (const auto& [key, pose] : {std::pair<const char*, bool>{"gps", false}, {"mocap", true}}) {
+    if (!m.has(key)) continue;
+    YamlMap am = m.child(key);
+    (pose ? c.mocap : c.gps).read(am, pose);
+    am.finish();
+  }
   m.finish();
   c.validate();
   return c;
@@ -221,6 +228,8 @@ void SimConfig::validate() const {
   require_bound(std::abs(camera_time_offset_s) <= 0.5, where, "camera.time_offset_ms", 1e3 * camera_time_offset_s,
                 "within ±500 ms");
   require_bound(render.threads >= 1 && render.threads <= 64, where, "threads", render.threads, "in [1, 64]");
+  gps.validate(where + " gps");
+  mocap.validate(where + " mocap");
 }
 
 std::shared_ptr<const Simulation> Simulation::create(const SimConfig& config) {
@@ -328,6 +337,10 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
     rig_.imu = imu;
   }
 
+  // Absolute fixes from the ground truth, each from its own seeded stream.
+  if (config_.gps.enabled) gps_ = make_position_fixes(*trajectory_, t0, t1, config_.gps, mix_seed(config_.seed, 5));
+  if (config_.mocap.enabled) mocap_ = make_pose_fixes(*trajectory_, t0, t1, config_.mocap, mix_seed(config_.seed, 6));
+
   ground_truth_.source = "simulation:" + config_.name;
   if (recorded) {
     // Images at the recorded states' timestamps (EuRoC's camera timestamps), the recorded IMU over the same window,
@@ -425,6 +438,17 @@ class SimSource final : public io::Source {
     const auto& imu = sim_->imu_samples();
     const auto& img = sim_->image_times();
     const bool has_imu = imu_pos_ < imu.size(), has_img = img_pos_ < img.size();
+    // Absolute fixes come after the IMU samples and images of their time (none while a stereo pair is half out).
+    const auto& gps = sim_->gps_fixes();
+    const auto& mocap = sim_->mocap_fixes();
+    if (cam_ == 0) {
+      const TimeNs t_other = std::min(has_imu ? imu[imu_pos_].t : kNoTime, has_img ? sim_->image_stamp(img_pos_) : kNoTime);
+      if (gps_pos_ < gps.size() && gps[gps_pos_].t < t_other &&
+          (mocap_pos_ >= mocap.size() || gps[gps_pos_].t <= mocap[mocap_pos_].t)) {
+        return gps[gps_pos_++];
+      }
+      if (mocap_pos_ < mocap.size() && mocap[mocap_pos_].t < t_other) return mocap[mocap_pos_++];
+    }
     if (!has_imu && !has_img) return std::nullopt;
     if (has_imu && (!has_img || imu[imu_pos_].t <= sim_->image_stamp(img_pos_))) {
       const SynthImuSample& s = imu[imu_pos_++];
@@ -454,13 +478,16 @@ class SimSource final : public io::Source {
     const auto& img = sim_->image_times();
     while (imu_pos_ < imu.size() && imu[imu_pos_].t < t) ++imu_pos_;
     while (img_pos_ < img.size() && sim_->image_stamp(img_pos_) < t) ++img_pos_;
+    while (gps_pos_ < sim_->gps_fixes().size() && sim_->gps_fixes()[gps_pos_].t < t) ++gps_pos_;
+    while (mocap_pos_ < sim_->mocap_fixes().size() && sim_->mocap_fixes()[mocap_pos_].t < t) ++mocap_pos_;
     cam_ = 0;
     return true;
   }
 
  private:
   std::shared_ptr<const Simulation> sim_;
-  std::size_t imu_pos_ = 0, img_pos_ = 0;
+  static constexpr TimeNs kNoTime = std::numeric_limits<TimeNs>::max();
+  std::size_t imu_pos_ = 0, img_pos_ = 0, gps_pos_ = 0, mocap_pos_ = 0;
   int cam_ = 0;
   io::SourceStats stats_;
 };

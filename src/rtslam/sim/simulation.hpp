@@ -33,6 +33,7 @@
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/source.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
+#include "rtslam/sim/absolute.hpp"
 #include "rtslam/sim/imu.hpp"
 #include "rtslam/sim/renderer.hpp"
 #include "rtslam/sim/trajectory.hpp"
@@ -59,6 +60,15 @@ struct SimConfig {
   double camera_time_offset_s = 0.0;
   bool imu_enabled = true;
   ImuSynthOptions imu;
+  // Absolute sensors measured from the ground truth (sim/absolute.hpp): a GPS-like position, a motion-capture pose.
+  AbsoluteSimOptions gps;
+  AbsoluteSimOptions mocap = [] {
+    AbsoluteSimOptions m;
+    m.rate_hz = 100.0;
+    m.sigma_m = 0.001;
+    m.sigma_deg = 0.1;
+    return m;
+  }();
 
   /// EuRoC MAV cam0 (mav0/cam0/sensor.yaml): 752x480, 20 Hz, radial-tangential, T_BS as T_RS.
   static io::CameraCalibration euroc_cam0();
@@ -102,12 +112,16 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   /// Ground truth of R at every IMU sample (at every image without IMU; at the recorded states in recorded mode):
   /// p, q, v, gyro and accel biases.
   const Trajectory& ground_truth() const { return ground_truth_; }
+  /// Absolute fixes (empty unless gps / mocap is enabled), in the world frame W.
+  const std::vector<io::PositionSample>& gps_fixes() const { return gps_; }
+  const std::vector<io::PoseSample>& mocap_fixes() const { return mocap_; }
   /// T_WC of camera c at time t (T_WR(t) * T_RS).
   math::Pose camera_pose(TimeNs t, int c = 0) const;
   /// Renders image k of camera c (deterministic: its noise seed derives from (seed, k, c)).
   cv::Mat render_image(std::size_t k, int c = 0) const;
 
-  /// An in-memory stream (IMU first at equal timestamps); it keeps this simulation alive.
+  /// An in-memory stream (IMU first at equal timestamps, then images, GPS fixes, mocap poses); it keeps this
+  /// simulation alive.
   std::unique_ptr<io::Source> make_source() const;
   /// The stream, rig and ground truth as an io::Dataset (kind "sim"), for `rtslam run` with no dataset.
   io::Dataset make_dataset() const;
@@ -131,6 +145,8 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   TimeNs time_offset_ = 0;
   std::vector<SynthImuSample> imu_;
   Trajectory ground_truth_;
+  std::vector<io::PositionSample> gps_;
+  std::vector<io::PoseSample> mocap_;
 };
 
 /// Mixes a seed with a stream id and an index (splitmix64): independent generators per noise source and frame.

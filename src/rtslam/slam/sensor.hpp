@@ -71,6 +71,10 @@ class Sensor {
 
   /// Measurement size (2 for a camera).
   virtual int measurement_size() const = 0;
+  /// Whether the sensor observes the map's landmarks (a camera). Sensors that do not (absolute position or pose
+  /// sensors, slam/absolute_sensor.hpp) get no observations, no map management after their data and no tracking
+  /// verdict of the health monitor.
+  virtual bool observes_landmarks() const { return true; }
   /// h_S (any scale, direction matters) → measurement z; false if not projectable (behind, outside domain).
   virtual bool project(const Eigen::Vector3d& h_S, Eigen::Vector2d& z, Eigen::Matrix<double, 2, 3>* J_z_h) const = 0;
   /// Inside the sensor's field (e.g. image bounds less a margin).

@@ -115,6 +115,8 @@ void System::handle(const RawData& datum) {
     step(*slot, *sensor, datum);
     return;
   }
+  // A robot starts from the data of its landmark sensors; an absolute fix before the start has nothing to correct.
+  if (!sensor->observes_landmarks()) return;
   const std::optional<RobotStart> s = slot->starter->offer(datum, slot->recent);
   if (!s) return;
   start(*slot, *s, *sensor);
@@ -205,12 +207,13 @@ FrameStats System::process(const RawData& raw) {
   stats.time_predict_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   sensor.data_manager()->process(map_, sensor, raw, frame_, stats);
   const auto t2 = std::chrono::steady_clock::now();
-  map_manager_->manage(map_, sensor, frame_, stats);
+  stats.landmark_frame = sensor.observes_landmarks();
+  if (stats.landmark_frame) map_manager_->manage(map_, sensor, frame_, stats);
   const auto t3 = std::chrono::steady_clock::now();
   stats.time_map_ms = std::chrono::duration<double, std::milli>(t3 - t2).count();
   stats.time_total_ms = std::chrono::duration<double, std::milli>(t3 - t0).count();
   stats.landmarks_in_map = static_cast<int>(map_.landmarks().size());
-  ++frame_;
+  if (stats.landmark_frame) ++frame_;  // frames count the landmark sensors' data (absolute fixes come in between)
   return stats;
 }
 

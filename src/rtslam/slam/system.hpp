@@ -118,6 +118,7 @@ class System {
   /// The loop's inner step, public for callers that drive robots themselves (tests).
   FrameStats process(const RawData& raw);
 
+  /// Data of landmark-observing sensors processed (absolute fixes are not counted: they come between frames).
   long steps() const { return frame_; }
   bool finished() const { return options_.max_steps > 0 && frame_ >= options_.max_steps; }
   std::size_t pending() const { return pending_.size(); }

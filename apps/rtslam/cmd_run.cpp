@@ -559,6 +559,11 @@ void run_dataset(const RunOptions& ro) {
              {{"p_m", (result.T_RS_estimate.p - result.T_RS_calibration.p).norm()},
               {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
       }
+      if (result.time_offset_estimated) {  // camera/time_offset: t_imu = t_cam + t_d
+        summary["imu"]["time_offset"] = {{"stamped_ms", 1e3 * result.time_offset_stamped_s},
+                                         {"estimate_ms", 1e3 * result.time_offset_estimate_s},
+                                         {"std_ms", 1e3 * result.time_offset_std_s}};
+      }
     }
     {
       long refused = 0, without_search = 0, nis_n = 0, abs_updates = 0, abs_rejected = 0;

@@ -188,7 +188,7 @@ TEST(CliLive, ATinySearchBudgetCutsTheSearchAndTheRunStillTracks) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
-    ASSERT_EQ(f.size(), 24u) << line;
+    ASSERT_EQ(f.size(), 26u) << line;
     hit += std::stoi(f[21]);
   }
   EXPECT_EQ(hit, b["search_budget"]["frames_hit"].get<int>());

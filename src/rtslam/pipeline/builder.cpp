@@ -6,6 +6,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/pipeline/starters.hpp"
 #include "rtslam/slam/absolute_sensor.hpp"
+#include "rtslam/slam/time_offset.hpp"
 #include "rtslam/strategies/absolute.hpp"
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
@@ -156,6 +157,7 @@ BuiltSystem Registry::build(const BuildContext& c) const {
           Eigen::Vector3d::Constant(rot * rot);
       cam.sensor->estimate_extrinsics(var.asDiagonal());
     }
+    slam::apply_time_offset(*cam.sensor, o.time_offset);
     // Each camera's data manager draws from its own stream (the first keeps the single-camera seed).
     std::unique_ptr<slam::DataManager> dm =
         data_managers_.at(o.data_manager)(c, *b.map_manager, cam.intrinsics, dm_seed(o) + 104729 * k);

@@ -43,6 +43,10 @@ void ImageSlamOptions::validate() const {
   }
   require_bound(rate_hz >= 0.0, where, "rate_hz", rate_hz, ">= 0");
   require_bound(sim_duration_s >= 0.0, "simulation", "duration", sim_duration_s, ">= 0");
+  if (sim_camera_time_offset_ms) {
+    require_bound(std::abs(*sim_camera_time_offset_ms) <= 500.0, "simulation", "camera_time_offset_ms",
+                  *sim_camera_time_offset_ms, "within ±500 ms");
+  }
   if (sim_preset.empty()) throw ConfigError("simulation/preset must not be empty");
   require_bound(overlay_frame >= -1, where, "overlay_frame", overlay_frame, ">= -1");
   if (overlay_frame >= 0 && overlay_path.empty()) throw ConfigError("slam/overlay_frame needs slam/overlay_path");
@@ -63,6 +67,11 @@ void ImageSlamOptions::validate() const {
   map.validate();
   health.validate();
   zero_velocity.validate();
+  time_offset.validate();
+  if (time_offset.estimate && robot != "inertial") {
+    throw ConfigError(fmt::format("camera/time_offset/estimate needs slam/robot = inertial (a camera's time offset is "
+                                  "relative to the IMU clock), not '{}'", robot));
+  }
   position_sensor.validate("position_sensor");
   pose_sensor.validate("pose_sensor");
   for (const auto& [name, a] : {std::pair<const char*, const strategies::AbsoluteSensorOptions*>{"position_sensor",
@@ -127,9 +136,15 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
   if (top.has("position_sensor")) strategies::read_absolute_sensor(top.child("position_sensor"), o.position_sensor, false);
   if (top.has("pose_sensor")) strategies::read_absolute_sensor(top.child("pose_sensor"), o.pose_sensor, true);
   {
+    YamlMap c = top.child("camera");
+    slam::read_time_offset(c.child("time_offset"), o.time_offset);
+    c.finish();
+  }
+  {
     YamlMap s = top.child("simulation");
     s.get("preset", o.sim_preset);
     s.get("duration", o.sim_duration_s);
+    if (s.has("camera_time_offset_ms")) o.sim_camera_time_offset_ms = s.require<double>("camera_time_offset_ms");
     s.finish();
   }
   top.finish();
@@ -170,10 +185,12 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["map_manager"] = map_policy_to_yaml(o.map);
   root["health"] = slam::health_to_yaml(o.health);
   root["zero_velocity"] = strategies::zero_velocity_to_yaml(o.zero_velocity);
+  root["camera"]["time_offset"] = slam::time_offset_to_yaml(o.time_offset);
   root["position_sensor"] = strategies::absolute_sensor_to_yaml(o.position_sensor, false);
   root["pose_sensor"] = strategies::absolute_sensor_to_yaml(o.pose_sensor, true);
   root["simulation"]["preset"] = o.sim_preset;
   root["simulation"]["duration"] = o.sim_duration_s;
+  if (o.sim_camera_time_offset_ms) root["simulation"]["camera_time_offset_ms"] = *o.sim_camera_time_offset_ms;
   return root;
 }
 
@@ -190,6 +207,7 @@ io::Dataset make_sim_dataset(const ImageSlamOptions& o) {
   sc.seed = o.seed;
   sc.trajectory_seed.reset();
   if (o.sim_duration_s > 0.0) sc.duration_s = o.sim_duration_s;
+  if (o.sim_camera_time_offset_ms) sc.camera_time_offset_s = 1e-3 * *o.sim_camera_time_offset_ms;
   // The simulator renders camera 0, and camera 1 (the right camera of its stereo rig) when the options use it.
   for (const int c : o.camera_indices()) {
     if (c > 1) throw ConfigError(fmt::format("slam/cameras: the simulator has cameras 0 and 1, not {}", c));
@@ -293,7 +311,7 @@ struct ImageSlam::Impl final : slam::Observer {
     take_fixes(result.frames.back());
     const slam::FrameStats& fs = result.frames.back();
     StampedPose& est = same_time ? result.estimate.poses.back() : result.estimate.poses.emplace_back();
-    est.t = s.raw.t;
+    est.t = s.robot.time();  // the datum's time in the IMU clock, with the estimated time offset when there is one
     const math::Pose T_WR = s.robot.pose();
     est.p_WR = T_WR.p;
     est.q_WR = T_WR.q;
@@ -461,6 +479,13 @@ struct ImageSlam::Impl final : slam::Observer {
       result.extrinsics_estimated = true;
       result.T_RS_estimate = sensor.T_RS(mean);
       result.T_RS_std = map.state().cov(sensor.block()).diagonal().cwiseSqrt();
+    }
+    result.time_offset_stamped_s = to_seconds(t_d);
+    result.time_offset_estimate_s = to_seconds(t_d);
+    if (sensor.time_block() != filter::kNoBlock) {
+      result.time_offset_estimated = true;
+      result.time_offset_estimate_s += sensor.time_offset(mean);
+      result.time_offset_std_s = std::sqrt(map.state().cov(sensor.time_block())(0, 0));
     }
     const Eigen::Vector3d p_WS = sensor.pose_in_world(mean).p;
     for (const auto& l : map.landmarks()) {

@@ -55,6 +55,9 @@ struct SimConfig {
   io::CameraCalibration camera = euroc_cam0();
   io::CameraCalibration camera1 = euroc_cam1();
   RenderOptions render;
+  // Camera–IMU time offset of the data (`camera.time_offset_ms`): an image captured at t (IMU clock) is stamped
+  // t − t_d, so that t_imu = t_cam + t_d as in the calibrations; the rig still says t_d = 0 (an unknown offset).
+  double camera_time_offset_s = 0.0;
   bool imu_enabled = true;
   ImuSynthOptions imu;
   // Absolute sensors measured from the ground truth (sim/absolute.hpp): a GPS-like position, a motion-capture pose.
@@ -100,8 +103,10 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   /// The rig: camera 0 (and 1 with stereo) with T_RS, the IMU (noise densities, T_RS = identity) when enabled,
   /// t_d = 0.
   const io::Rig& rig() const { return rig_; }
-  /// Image times (every camera renders at each).
+  /// Image times (every camera renders at each): the true capture times, in the IMU clock.
   const std::vector<TimeNs>& image_times() const { return image_times_; }
+  /// The timestamp image k carries in the streams: its capture time less the camera–IMU offset.
+  TimeNs image_stamp(std::size_t k) const { return image_times_[k] - time_offset_; }
   /// IMU samples: synthesized (with the true biases), or recorded (biases unknown: zero).
   const std::vector<SynthImuSample>& imu_samples() const { return imu_; }
   /// Ground truth of R at every IMU sample (at every image without IMU; at the recorded states in recorded mode):
@@ -137,6 +142,7 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   std::vector<math::Pose> T_RS_;
   io::Rig rig_;
   std::vector<TimeNs> image_times_;
+  TimeNs time_offset_ = 0;
   std::vector<SynthImuSample> imu_;
   Trajectory ground_truth_;
   std::vector<io::PositionSample> gps_;

@@ -104,6 +104,9 @@ py::dict frame_dict(const slam::FrameStats& f) {
   d["nis_count"] = f.nis_count;
   d["health"] = f.health;
   d["reset"] = f.reset;
+  d["budget_hit"] = f.budget_hit;
+  d["budget_skipped"] = f.budget_skipped;
+  d["time_search_ms"] = f.time_search_ms;
   d["time_ms"] = f.time_total_ms;
   return d;
 }

@@ -74,6 +74,7 @@ struct RunOptions {
   bool force = false;                  // --force: replace the outputs of an earlier run in --out
   io::DatasetOptions input;            // --bad-input, --calibration, --timestamps, --max-imu-dropout, bag topics
   std::optional<double> realtime;      // --realtime [SPEED]: replay at the sensor clock × SPEED, drop late images
+  std::optional<double> search_budget_ms;  // --search-budget MS: search/time_budget_ms (0: off)
   int prefetch = -1;                   // --prefetch N / --no-prefetch (prefetch_option.hpp)
 };
 
@@ -316,6 +317,11 @@ io::FrameStats to_io(const slam::FrameStats& s) {
   f.nis_count = s.nis_count;
   f.health = s.health;
   f.reset = s.reset;
+  f.budget_hit = s.budget_hit;
+  f.budget_skipped = s.budget_skipped;
+  f.t_search_ms = s.time_search_ms;
+  f.absolute_updates = s.absolute_updates;
+  f.absolute_rejected = s.absolute_rejected;
   return f;
 }
 
@@ -381,6 +387,22 @@ void run_demo(const RunOptions& ro) {
       ev.sim3_scale, ro.out);
 }
 
+// The search's time budget of a run (search/time_budget_ms): --search-budget, else the config's, else with --realtime
+// half the frame period at the replay speed, shared by the cameras — the other half is left to the robot prediction,
+// landmark initialization, map management and the reading of the next image. Returns where it came from ("off" when
+// none).
+std::string run_search_budget(const RunOptions& ro, std::optional<double> realtime_speed, const io::Dataset& ds,
+                              pipeline::ImageSlamOptions& o) {
+  if (ro.search_budget_ms) return *ro.search_budget_ms > 0.0 ? "--search-budget" : "off";  // set before --dump-config
+  if (o.search.time_budget_ms > 0.0) return "config";
+  const double rate_hz = ds.rig.cameras.empty() ? 0.0 : ds.rig.cameras.front().rate_hz;
+  if (!realtime_speed || !(rate_hz > 0.0)) return "off";
+  const double cameras = static_cast<double>(std::max<std::size_t>(1, o.camera_indices().size()));
+  o.search.time_budget_ms =
+      std::min(0.5 * 1e3 / rate_hz / *realtime_speed / cameras, strategies::ActiveSearchOptions::kMaxTimeBudgetMs);
+  return "--realtime";
+}
+
 // Monocular or inertial-monocular image SLAM on a dataset or the simulator (src/rtslam/pipeline/image_slam.hpp):
 // camera 0 of the rig, the IMU when the configuration's robot is inertial. Without --config, simulated runs use the
 // built-in config/sim_mono.yaml and dataset runs the options' defaults.
@@ -395,6 +417,7 @@ void run_dataset(const RunOptions& ro) {
     if (!simulated) throw ConfigError("--duration applies to simulated runs only (no --dataset, or sim:PRESET)");
     o.sim_duration_s = *ro.duration_s;
   }
+  if (ro.search_budget_ms) o.search.time_budget_ms = *ro.search_budget_ms;
   if (ro.overlay_frame) {
     o.overlay_frame = *ro.overlay_frame;
     o.overlay_path = fmt::format("{}/overlay_{:05d}.png", ro.out, *ro.overlay_frame);
@@ -403,6 +426,11 @@ void run_dataset(const RunOptions& ro) {
   if (ro.dump_config) {
     std::cout << YAML::Dump(pipeline::to_yaml(o)) << '\n';
     return;
+  }
+  if (ro.dataset.rfind("camera:", 0) == 0 && o.robot == "inertial") {
+    throw ConfigError(fmt::format("{}: a live camera streams no IMU, which slam/robot: inertial needs (docs/datasets.md, "
+                                  "\"Pairing with an IMU\")",
+                                  ro.dataset));
   }
   prepare_out_dir(ro);          // an earlier run's outputs: refused, or removed with --force
   RunDisplays displays(ro, o);  // before the input: a port in use or a bad path fails at once
@@ -420,16 +448,20 @@ void run_dataset(const RunOptions& ro) {
   // Calibration check (inertial runs): a pre-pass over the dataset opened again; the run's stream timing recorded.
   std::string calibration_skipped;
   const auto calibration = calibration_prepass(ro.dataset, dopt, o, simulated, calibration_skipped);
-  // Real time: the stream is released at the sensor clock by an acquisition thread; late images are dropped.
+  // Real time: the stream is released at the sensor clock by an acquisition thread; late images are dropped. A live
+  // camera is always read so (its clock is the wall clock: speed 1).
+  const bool live = ds.kind == "camera";
+  const std::optional<double> realtime_speed = live ? std::optional<double>(1.0) : ro.realtime;
   const io::RealtimeSource* realtime = nullptr;
-  if (ro.realtime) {
-    auto rt = std::make_unique<io::RealtimeSource>(std::move(ds.source), *ro.realtime);
+  if (realtime_speed) {
+    auto rt = std::make_unique<io::RealtimeSource>(std::move(ds.source), *realtime_speed);
     realtime = rt.get();
     ds.source = std::move(rt);
   }
   auto stream_monitor = std::make_unique<calib::StreamMonitor>(std::move(ds.source));
   const calib::StreamMonitor& run_stream = *stream_monitor;
   ds.source = std::move(stream_monitor);
+  const std::string budget_source = run_search_budget(ro, realtime_speed, ds, o);
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
   displays.attach(ds, o.seed);
 
@@ -450,7 +482,7 @@ void run_dataset(const RunOptions& ro) {
   pipeline::ImageSlamResult result;
   bool interrupted = false;
   nlohmann::json summary;
-  std::string accuracy_line, display_line, calibration_line, realtime_line;
+  std::string accuracy_line, display_line, calibration_line, realtime_line, budget_line;
   std::vector<double> times;
   io::Percentiles timing;
   nlohmann::json stages;
@@ -527,12 +559,19 @@ void run_dataset(const RunOptions& ro) {
              {{"p_m", (result.T_RS_estimate.p - result.T_RS_calibration.p).norm()},
               {"rotation_deg", d.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI}}}};
       }
+      if (result.time_offset_estimated) {  // camera/time_offset: t_imu = t_cam + t_d
+        summary["imu"]["time_offset"] = {{"stamped_ms", 1e3 * result.time_offset_stamped_s},
+                                         {"estimate_ms", 1e3 * result.time_offset_estimate_s},
+                                         {"std_ms", 1e3 * result.time_offset_std_s}};
+      }
     }
     {
-      long refused = 0, without_search = 0, nis_n = 0;
+      long refused = 0, without_search = 0, nis_n = 0, abs_updates = 0, abs_rejected = 0;
       double nis_sum = 0.0;
       for (const auto& f : result.frames) {
         refused += f.refused;
+        abs_updates += f.absolute_updates;
+        abs_rejected += f.absolute_rejected;
         without_search += f.searched == 0 ? 1 : 0;
         nis_sum += f.nis;
         nis_n += f.nis_count;
@@ -545,12 +584,16 @@ void run_dataset(const RunOptions& ro) {
                            {"frames_without_search", without_search},
                            {"corrections_refused", refused},
                            {"mean_nis_per_dof", nis_n > 0 ? nis_sum / (2.0 * static_cast<double>(nis_n)) : 0.0}};
+      if (o.position_sensor.enabled || o.pose_sensor.enabled) {
+        summary["absolute"] = {{"corrections_applied", abs_updates}, {"corrections_rejected", abs_rejected}};
+      }
     }
     summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
     summary["input"] = ds.source->stats().to_json();
     if (realtime != nullptr) {
       const io::RealtimeStats rs = realtime->realtime();
-      summary["realtime"] = {{"speed", *ro.realtime},
+      summary["realtime"] = {{"speed", *realtime_speed},
+                             {"live", live},
                              {"images_released", rs.images_released},
                              {"images_processed", rs.images_taken},
                              {"images_dropped", rs.images_dropped},
@@ -560,11 +603,34 @@ void run_dataset(const RunOptions& ro) {
       realtime_line = fmt::format(
           "  real time ({}x the sensor clock): {} of {} images processed, {} dropped (late); filter lag mean "
           "{:.1f} ms, max {:.1f} ms; acquisition late by up to {:.1f} ms\n",
-          *ro.realtime, rs.images_taken, rs.images_released, rs.images_dropped, 1e3 * rs.mean_lag_s,
+          *realtime_speed, rs.images_taken, rs.images_released, rs.images_dropped, 1e3 * rs.mean_lag_s,
           1e3 * rs.max_lag_s, 1e3 * rs.reader_late_s);
       if (rs.images_dropped > 0) {
         logger("run")->warn("real time: {} image(s) dropped because the filter was busy (speed {}x)", rs.images_dropped,
-                            *ro.realtime);
+                            *realtime_speed);
+      }
+    }
+    {
+      // The search's time budget: frames where it ran out, landmarks it left unsearched, the search's time.
+      long frames_hit = 0, skipped = 0;
+      std::vector<double> search_ms;
+      search_ms.reserve(result.frames.size());
+      for (const auto& f : result.frames) {
+        frames_hit += f.budget_hit ? 1 : 0;
+        skipped += f.budget_skipped;
+        search_ms.push_back(f.time_search_ms);
+      }
+      const io::Percentiles sp = io::percentiles(search_ms);
+      summary["search_budget"] = {{"budget_ms", o.search.time_budget_ms},
+                                  {"source", budget_source},
+                                  {"frames_hit", frames_hit},
+                                  {"landmarks_skipped", skipped},
+                                  {"search_ms", io::to_json(sp)}};
+      if (o.search.time_budget_ms > 0.0) {
+        budget_line = fmt::format(
+            "  search budget {:.3g} ms ({}): ran out in {} of {} frames, {} landmarks left unsearched; search time "
+            "median {:.3f} ms, max {:.3f} ms\n",
+            o.search.time_budget_ms, budget_source, frames_hit, result.frames.size(), skipped, sp.median, sp.max);
       }
     }
     calibration_line = calibration_summary(calibration, calibration_skipped, run_stream.report(), summary);
@@ -659,7 +725,7 @@ void run_dataset(const RunOptions& ro) {
                         result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
                         result.imu_accel_saturated, result.images_before_start)
           : std::string()),
-      calibration_line, realtime_line, display_line, ro.out);
+      calibration_line, realtime_line + budget_line, display_line, ro.out);
   std::cout << std::flush;
   if (const int sig = RunSignals::received()) {
     std::cerr << fmt::format(
@@ -682,8 +748,10 @@ void register_run(CLI::App& app) {
   auto opts = std::make_shared<RunOptions>();
   auto* sub = app.add_subcommand("run", "Run SLAM on a dataset, or on the built-in simulated demo (no --dataset)");
   sub->add_option("--dataset", opts->dataset,
-                  "KIND:PATH of a dataset (euroc, tum, kitti, images, video), or sim:PRESET|FILE for the simulator; "
-                  "without it: the simulator's config simulation/preset (default handheld)");
+                  "KIND:PATH of a dataset (euroc, tum, kitti, images, video), camera:N for the live camera /dev/videoN "
+                  "(with --calibration; camera:FILE: a video played in a loop standing in for one; ends with "
+                  "--stop-after or Ctrl-C), or sim:PRESET|FILE for the simulator; without it: the simulator's config "
+                  "simulation/preset (default handheld)");
   sub->add_option("--config", opts->config, "YAML configuration (see docs/demo.md); an output folder's "
                                             "config.yaml reproduces its run");
   sub->add_flag("--dump-config", opts->dump_config, "Print the effective configuration and exit");
@@ -758,6 +826,11 @@ void register_run(CLI::App& app) {
                   "never); summary.json 'realtime'")
       ->expected(0, 1)
       ->type_name("[SPEED]");
+  sub->add_option("--search-budget", opts->search_budget_ms,
+                  "The active search's time budget per frame in ms (search/time_budget_ms; 0: off): the search stops "
+                  "matching new landmarks when it is spent and corrects with what it matched. Default: the config's; "
+                  "with --realtime and none configured, half the frame period at the replay speed")
+      ->check(CLI::Range(0.0, strategies::ActiveSearchOptions::kMaxTimeBudgetMs));
   // The input options of io::DatasetOptions (docs/datasets.md, docs/ros.md); --rate, --start-at and --stop-after above.
   sub->add_option_function<std::string>(
          "--bad-input",
@@ -813,6 +886,9 @@ void register_run(CLI::App& app) {
       return;
     }
     if (opts->points) throw ConfigError("--points applies to --points-demo only");
+    if (opts->dataset.rfind("camera:", 0) == 0 && opts->realtime && *opts->realtime != 1.0) {
+      throw ConfigError(fmt::format("--realtime {}: a live camera runs at its own clock (speed 1)", *opts->realtime));
+    }
     if (opts->view_hold_s && !opts->view) throw ConfigError("--view-hold applies to --view only");
     if (opts->overlay_every != 1 && !opts->overlays) throw ConfigError("--overlay-every applies to --overlays only");
     run_dataset(*opts);

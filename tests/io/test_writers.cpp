@@ -205,6 +205,11 @@ TEST(FramesCsv, RoundTripsEveryField) {
     s.nis_count = 9;
     s.health = static_cast<int>(i % 3);
     s.reset = i == 2;
+    s.budget_hit = i == 3;
+    s.budget_skipped = static_cast<int>(2 * i);
+    s.t_search_ms = 0.25 + 1.0 / 7.0 * static_cast<double>(i);
+    s.absolute_updates = 5 + static_cast<int>(i);
+    s.absolute_rejected = static_cast<int>(i % 2);
   }
   {
     FramesCsvWriter w(dir / "frames.csv");
@@ -228,6 +233,11 @@ TEST(FramesCsv, RoundTripsEveryField) {
     EXPECT_EQ(back[i].nis_count, rows[i].nis_count);
     EXPECT_EQ(back[i].health, rows[i].health);
     EXPECT_EQ(back[i].reset, rows[i].reset);
+    EXPECT_EQ(back[i].budget_hit, rows[i].budget_hit);
+    EXPECT_EQ(back[i].budget_skipped, rows[i].budget_skipped);
+    EXPECT_EQ(back[i].t_search_ms, rows[i].t_search_ms);
+    EXPECT_EQ(back[i].absolute_updates, rows[i].absolute_updates);
+    EXPECT_EQ(back[i].absolute_rejected, rows[i].absolute_rejected);
   }
   EXPECT_EQ(test::read_text(dir / "frames.csv").rfind(FramesCsvWriter::header(), 0), 0u);
 }

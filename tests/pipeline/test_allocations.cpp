@@ -1,6 +1,6 @@
 // The per-frame path allocates nothing after warm-up (DEVELOPERS.md, "Engineering standards"): every heap
 // allocation of the process is counted (global operator new replaced in this test binary) while the image SLAM
-// pipeline runs on pre-decoded simulated images, and each image's count is set against what the frame did. A frame
+// pipeline runs on pre-decoded simulated images, and each processed frame's count is set against what it did. A frame
 // that creates no landmark (initialization, or reparametrization into a new landmark object with its descriptor)
 // must allocate nothing; landmark creation allocates its object, observations and descriptor, which the test
 // reports per landmark. Warm-up: the first 2 s, while workspaces grow to their working sizes.
@@ -61,29 +61,35 @@ class PreloadedSource final : public io::Source {
   io::SourceStats stats_;
 };
 
-void check_allocations(const std::string& config, double duration_s) {
+void check_allocations(const std::string& config, double duration_s, bool time_offset = false) {
   ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/" + config);
   o.sim_duration_s = duration_s;
+  o.time_offset.estimate = time_offset;
   io::Dataset ds = make_sim_dataset(o);
   ds.source = std::make_unique<PreloadedSource>(*ds.source);
-  std::vector<long> per_image;  // allocations between consecutive images (one entry per image taken)
-  per_image.reserve(*ds.source->image_count() + 1);
+  // Allocations per processed frame, counted from one frame's end (its observer call) to the next's: a frame's
+  // count is its processing with the IMU samples fed before it. (Not per image taken from the source: an image
+  // waits for the IMU to cover its time in the robot's clock, and with an estimated camera time offset that time
+  // lies beyond its stamp, so it is processed after the next measurements are read.)
+  std::vector<long> per_frame;
+  per_frame.reserve(*ds.source->image_count() + 1);
   long last = 0;
-  const ImageSlamResult r = run_image_slam(ds, o, [&](int, int) {
+  bool in_order = true;
+  const ImageSlamResult r = run_image_slam(ds, o, {}, [&](const ImageSlamFrame& f) {
     const long now = g_allocations.load(std::memory_order_relaxed);
-    per_image.push_back(now - last);
+    in_order = in_order && f.index == static_cast<int>(per_frame.size());
+    per_frame.push_back(now - last);
     last = g_allocations.load(std::memory_order_relaxed);
   });
-  // Images before the inertial start are taken but not processed; the processed ones follow in order.
-  const std::size_t skip = static_cast<std::size_t>(r.images_before_start);
-  ASSERT_EQ(per_image.size(), skip + r.frames.size());
+  ASSERT_TRUE(in_order) << "the observer saw the frames out of order";
+  ASSERT_EQ(per_frame.size(), r.frames.size());
   const TimeNs warm = r.frames.front().t + from_seconds(2.0);
   int quiet_frames = 0, quiet_allocating = 0, created = 0;
   long quiet_allocations = 0, creating_allocations = 0;
   for (std::size_t k = 1; k < r.frames.size(); ++k) {  // k = 0 also counts the start of the run
     const slam::FrameStats& f = r.frames[k];
     if (f.t < warm) continue;
-    const long a = per_image[skip + k];
+    const long a = per_frame[k];
     const int new_landmarks = f.initialized + f.reparametrized;
     if (new_landmarks == 0) {
       ++quiet_frames;
@@ -105,6 +111,12 @@ void check_allocations(const std::string& config, double duration_s) {
 TEST(Allocations, MonocularFramesAllocateOnlyForNewLandmarks) { check_allocations("config/sim_mono.yaml", 8.0); }
 
 TEST(Allocations, InertialFramesAllocateOnlyForNewLandmarks) { check_allocations("config/sim_mono_imu.yaml", 6.0); }
+
+// With the camera–IMU time offset estimated (camera/time_offset): one more block in every observation, and the
+// images processed once the IMU covers their stamp plus the estimate.
+TEST(Allocations, InertialFramesWithTimeOffsetAllocateOnlyForNewLandmarks) {
+  check_allocations("config/sim_mono_imu.yaml", 6.0, true);
+}
 
 }  // namespace
 }  // namespace rtslam::pipeline

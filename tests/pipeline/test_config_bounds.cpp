@@ -95,3 +95,58 @@ TEST(ImuOptionsBounds, PriorsAndSaturationsHaveUpperBounds) {
 
 }  // namespace
 }  // namespace rtslam::pipeline
+
+namespace rtslam::pipeline {
+namespace {
+
+// The absolute sensors' sections (strategies/absolute.hpp, docs/configuration.md): every key read, written back
+// identically, and a bad value is a one-line error naming the file and the key.
+TEST(AbsoluteSensorConfig, KeysAreReadAndRoundTrip) {
+  ImageSlamOptions o;
+  apply_image_slam_config(YAML::Load("{slam: {robot: inertial},"
+                                     " position_sensor: {enabled: true, sigma: 0.3, lever_arm: [0.1, -0.05, 0.2],"
+                                     "   gate: 20, world: align, align_yaw_std_deg: 2, align_min_fixes: 25},"
+                                     " pose_sensor: {enabled: true, sigma: 0.002, sigma_deg: 0.2, lever_arm: [0, 0, 0.1],"
+                                     "   rotation_deg: [10, -20, 90], world: start}}"),
+                          "abs.yaml", o);
+  EXPECT_TRUE(o.position_sensor.enabled);
+  EXPECT_EQ(o.position_sensor.sigma_m, 0.3);
+  EXPECT_EQ(o.position_sensor.lever_arm, Eigen::Vector3d(0.1, -0.05, 0.2));
+  EXPECT_EQ(o.position_sensor.gate, 20.0);
+  EXPECT_EQ(o.position_sensor.align_yaw_std_deg, 2.0);
+  EXPECT_EQ(o.position_sensor.align_min_fixes, 25);
+  EXPECT_TRUE(o.pose_sensor.enabled);
+  EXPECT_EQ(o.pose_sensor.sigma_m, 0.002);
+  EXPECT_EQ(o.pose_sensor.sigma_deg, 0.2);
+  EXPECT_EQ(o.pose_sensor.rotation_deg, Eigen::Vector3d(10, -20, 90));
+  EXPECT_EQ(o.pose_sensor.world, "start");
+  EXPECT_EQ(o.pose_sensor.T_RS().p, Eigen::Vector3d(0, 0, 0.1));
+  ImageSlamOptions back;
+  apply_image_slam_config(to_yaml(o), "round trip", back);
+  EXPECT_EQ(YAML::Dump(to_yaml(back)), YAML::Dump(to_yaml(o)));
+}
+
+TEST(AbsoluteSensorConfig, BadValuesAreOneLineErrorsNamingFileAndKey) {
+  const auto err = [](const std::string& yaml) {
+    ImageSlamOptions o;
+    return error_of([&] { apply_image_slam_config(YAML::Load(yaml), "abs.yaml", o); });
+  };
+  for (const std::string& e : {err("{position_sensor: {sigma: -1}}"), err("{pose_sensor: {sigma_deg: 500}}"),
+                               err("{position_sensor: {world: gps}}"), err("{pose_sensor: {sigma_m: 1}}"),
+                               err("{position_sensor: {align_min_fixes: 1}}"),
+                               err("{position_sensor: {enabled: true}}")}) {
+    EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+    EXPECT_NE(e, "(no error)");
+  }
+  EXPECT_EQ(err("{position_sensor: {sigma: -1}}"), "abs.yaml: position_sensor: sigma = -1 must be in (0, 1e4] m");
+  EXPECT_NE(err("{pose_sensor: {sigma_deg: 500}}").find("abs.yaml: pose_sensor: sigma_deg = 500"), std::string::npos);
+  EXPECT_NE(err("{position_sensor: {world: gps}}").find("abs.yaml: position_sensor: world = 'gps'"), std::string::npos);
+  EXPECT_NE(err("{pose_sensor: {sigma_m: 1}}").find("abs.yaml"), std::string::npos);  // an unknown key
+  EXPECT_NE(err("{pose_sensor: {sigma_m: 1}}").find("sigma_m"), std::string::npos);
+  // Aligning with a position only needs gravity: the inertial robot.
+  EXPECT_NE(err("{position_sensor: {enabled: true}}").find("position_sensor/world = align needs slam/robot = inertial"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace rtslam::pipeline

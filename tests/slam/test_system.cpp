@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/slam/absolute_sensor.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
 
@@ -90,12 +91,14 @@ struct Recorder final : Observer {
     indices.push_back(s.index);
     times.push_back(s.raw.t);
     health.push_back(s.stats.health);
+    landmark_frame.push_back(s.stats.landmark_frame);
     resets += s.stats.reset ? 1 : 0;
   }
   void on_start(const Robot&, const RobotStart& s) override { starts.push_back(s.t); }
   std::vector<long> indices;
   std::vector<TimeNs> times, starts;
   std::vector<int> health;
+  std::vector<bool> landmark_frame;
   int resets = 0;
 };
 
@@ -108,9 +111,11 @@ struct InertialRig {
   CountingDataManager* dm = nullptr;
   WindowStarter* starter = nullptr;
   Sensor* camera = nullptr;
+  Sensor* gps = nullptr;  // with_gps: an absolute position sensor with a counting data manager
+  CountingDataManager* gps_dm = nullptr;
   int imu_id = -1;
   Recorder recorder;
-  explicit InertialRig(int start_at, SystemOptions so = {}) {
+  explicit InertialRig(int start_at, SystemOptions so = {}, bool with_gps = false) {
     map = &world.add_map();
     system = std::make_unique<System>(world, *map, std::make_unique<NoMapManager>(), so);
     auto robot = std::make_unique<InertialRobot>(models::InertialParams{});
@@ -118,6 +123,12 @@ struct InertialRig {
     auto dm_ptr = std::make_unique<CountingDataManager>();
     dm = dm_ptr.get();
     camera->set_data_manager(std::move(dm_ptr));
+    if (with_gps) {
+      gps = &robot->add_sensor(std::make_unique<AbsoluteSensor>("gps", AbsoluteSensor::Kind::Position, math::Pose{}));
+      auto g = std::make_unique<CountingDataManager>();
+      gps_dm = g.get();
+      gps->set_data_manager(std::move(g));
+    }
     auto st = std::make_unique<WindowStarter>(start_at, 19, 18);
     st->set_x0([] {
       Eigen::VectorXd x = Eigen::VectorXd::Zero(19);
@@ -140,6 +151,12 @@ struct InertialRig {
     auto d = system->spare<Blob>();
     d->t = t;
     d->sensor_id = camera->id();
+    system->feed(std::move(d));
+  }
+  void fix(TimeNs t) {
+    auto d = system->spare<PositionData>();
+    d->t = t;
+    d->sensor_id = gps->id();
     system->feed(std::move(d));
   }
 };
@@ -178,6 +195,40 @@ TEST(System, ImagesWaitUntilTheImuCoversThemThenGoThroughTheStarterAndTheFilterI
   rig.image(85 * kMs);
   EXPECT_EQ(rig.dm->times.back(), 85 * kMs);
   EXPECT_EQ(rig.starter->offers, 3);
+}
+
+// Absolute fixes (a sensor that observes no landmark): before the robot started they are neither offered to the
+// starter nor held for its replay (nothing to correct yet); after it they wait for the IMU like images, are processed
+// by their data manager in time order and reported, but are no frame of their own (the frame index counts images).
+TEST(System, AbsoluteFixesBeforeTheStartAreSkippedAndAfterItAreNoFrames) {
+  InertialRig rig(/*start_at=*/2, {}, /*with_gps=*/true);
+  for (int k = 0; k <= 10; ++k) rig.imu(k * 5 * kMs);  // IMU up to 50 ms
+  rig.fix(10 * kMs);
+  rig.image(20 * kMs);
+  rig.fix(30 * kMs);
+  EXPECT_EQ(rig.starter->offers, 1);  // the image only
+  EXPECT_TRUE(rig.map->robots().empty());
+  rig.image(40 * kMs);  // the start, at 20 ms, replays both images and no fix
+  ASSERT_EQ(rig.map->robots().size(), 1u);
+  EXPECT_EQ(rig.starter->offers, 2);
+  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{20 * kMs, 40 * kMs}));
+  EXPECT_TRUE(rig.gps_dm->times.empty());
+  rig.fix(45 * kMs);
+  rig.image(50 * kMs);
+  rig.fix(60 * kMs);  // not covered by the IMU yet: held
+  EXPECT_EQ(rig.system->pending(), 1u);
+  EXPECT_EQ(rig.gps_dm->times, (std::vector<TimeNs>{45 * kMs}));
+  for (int k = 11; k <= 13; ++k) rig.imu(k * 5 * kMs);
+  rig.image(65 * kMs);
+  EXPECT_EQ(rig.system->pending(), 0u);
+  EXPECT_EQ(rig.gps_dm->times, (std::vector<TimeNs>{45 * kMs, 60 * kMs}));
+  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{20 * kMs, 40 * kMs, 50 * kMs, 65 * kMs}));
+  EXPECT_EQ(rig.dm->frames, (std::vector<long>{0, 1, 2, 3}));  // images keep consecutive frame numbers
+  EXPECT_EQ(rig.recorder.times,
+            (std::vector<TimeNs>{20 * kMs, 40 * kMs, 45 * kMs, 50 * kMs, 60 * kMs, 65 * kMs}));
+  EXPECT_EQ(rig.recorder.landmark_frame, (std::vector<bool>{true, true, false, true, false, true}));
+  EXPECT_EQ(rig.starter->offers, 2);
+  EXPECT_EQ(rig.recorder.resets, 0);
 }
 
 TEST(System, FedObjectsAreReusedAndReleased) {

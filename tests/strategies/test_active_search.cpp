@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "rtslam/core/error.hpp"
@@ -399,6 +400,112 @@ TEST(MapPolicyOptionsBounds, MapSizeHasAnUpperBound) {
   EXPECT_THROW(m.validate(), ConfigError);
   m.map_size = 500;
   EXPECT_NO_THROW(m.validate());
+}
+
+/// A budget clock that advances by `step_ms` at each reading: the data manager reads it once when the search starts,
+/// once before each ZNCC search it may start (until the budget is spent) and once at the end.
+class SteppingClock final : public BudgetClock {
+ public:
+  explicit SteppingClock(double step_ms) : step_ms_(step_ms) {}
+  double now_ms() override { return step_ms_ * static_cast<double>(reads_++); }
+  int reads() const { return reads_; }
+
+ private:
+  double step_ms_;
+  int reads_ = 0;
+};
+
+/// Frame 1 of the outlier scene (no outlier) processed with `o`, the budget clock `clock` (nullptr: steady clock).
+struct BudgetFrame {
+  slam::FrameStats stats;
+  std::vector<ActiveSearchDataManager::FrameMatch> matches;
+  int searches = 0;
+  math::Pose pose;
+};
+BudgetFrame process_with_budget(ActiveSearchOptions o, BudgetClock* clock) {
+  OutlierScene s;
+  Rig rig(s.T0);
+  ActiveSearchDataManager dm(o, rig.map_manager, 320, 240, 11);
+  init_known_depth_map(rig, dm, s.img0, 0.03, 0.01);  // frame 0 (before the clock is set: no search there)
+  dm.set_budget_clock(clock);
+  RawImage raw;
+  raw.image = s.img1.view();
+  BudgetFrame f;
+  dm.process(*rig.map, *rig.sensor, raw, 1, f.stats);
+  f.matches = dm.last_frame();
+  f.searches = dm.last_frame_searches();
+  f.pose = rig.robot->pose();
+  return f;
+}
+
+TEST(ActiveSearchBudget, OffTheClockIsNeverReadAndTheFrameIsUnchanged) {
+  SteppingClock clock(1.0);
+  const BudgetFrame plain = process_with_budget(test_options(), nullptr);
+  const BudgetFrame clocked = process_with_budget(test_options(), &clock);
+  EXPECT_EQ(clock.reads(), 0);
+  EXPECT_FALSE(clocked.stats.budget_hit);
+  EXPECT_EQ(clocked.stats.budget_skipped, 0);
+  EXPECT_EQ(clocked.searches, plain.searches);
+  EXPECT_EQ(clocked.stats.updated, plain.stats.updated);
+  EXPECT_EQ(clocked.pose.p, plain.pose.p);
+  EXPECT_GT(clocked.stats.time_search_ms, 0.0);  // measured by the steady clock when off
+}
+
+TEST(ActiveSearchBudget, PlainSearchStopsAfterTheSearchesTheBudgetAllowsInInformationOrder) {
+  // Without RANSAC every search is a landmark's. Readings: 0 at the start, k before search k: with a budget of 10.5
+  // steps, searches 1..10 start, the 11th reading (11 >= 10.5) spends the budget, the end reads 12.
+  ActiveSearchOptions o = test_options();
+  o.ransac_ntries = 0;
+  o.time_budget_ms = 10.5;
+  SteppingClock clock(1.0);
+  const BudgetFrame f = process_with_budget(o, &clock);
+  ASSERT_GE(f.stats.visible, 14);
+  EXPECT_EQ(f.searches, 10);
+  EXPECT_EQ(f.stats.searched, 10);
+  EXPECT_TRUE(f.stats.budget_hit);
+  EXPECT_EQ(f.stats.budget_skipped, f.stats.visible - 10);
+  EXPECT_EQ(clock.reads(), 13);
+  EXPECT_EQ(f.stats.time_search_ms, 12.0);
+  EXPECT_GE(f.stats.updated, 8);  // what was matched is corrected
+  // The searched landmarks are the 10 of largest det S at the frame's first prediction.
+  double min_searched = std::numeric_limits<double>::infinity(), max_skipped = 0.0;
+  for (const auto& m : f.matches) {
+    const double det = m.S.determinant();
+    if (m.searched) min_searched = std::min(min_searched, det);
+    else max_skipped = std::max(max_skipped, det);
+  }
+  EXPECT_GE(min_searched, max_skipped);
+}
+
+TEST(ActiveSearchBudget, CutDuringRansacTheBestSupportIsStillCorrected) {
+  // One hypothesis (a full-ellipse search) and its support (box searches) use the 11 searches 11.5 steps allow;
+  // no second hypothesis starts and stage 3 searches nothing, but the support set found is corrected.
+  ActiveSearchOptions o = test_options();
+  o.time_budget_ms = 11.5;
+  SteppingClock clock(1.0);
+  const BudgetFrame f = process_with_budget(o, &clock);
+  EXPECT_EQ(f.searches, 11);
+  EXPECT_TRUE(f.stats.budget_hit);
+  EXPECT_GE(f.stats.ransac_inliers, 5);
+  EXPECT_EQ(f.stats.updated, f.stats.ransac_inliers);
+  EXPECT_GT(f.stats.budget_skipped, 0);
+  EXPECT_EQ(f.stats.budget_skipped + f.stats.searched, f.stats.visible);
+  // A larger budget searches more.
+  o.time_budget_ms = 30.5;
+  SteppingClock clock30(1.0);
+  const BudgetFrame g = process_with_budget(o, &clock30);
+  EXPECT_EQ(g.searches, 30);
+  EXPECT_GT(g.stats.searched, f.stats.searched);
+}
+
+TEST(ActiveSearchBudget, TheBudgetKeyIsRangeChecked) {
+  EXPECT_EQ(config_error_of("search: {time_budget_ms: -1}"),
+            "cfg.yaml/search: time_budget_ms = -1 must be 0 (off) or in (0, 10000] ms");
+  EXPECT_EQ(config_error_of("search: {time_budget_ms: 0.25}"), "(no error)");
+  ActiveSearchOptions o;
+  o.time_budget_ms = 0.25;
+  YAML::Node n = o.to_yaml();
+  EXPECT_EQ(n["time_budget_ms"].as<double>(), 0.25);
 }
 
 }  // namespace

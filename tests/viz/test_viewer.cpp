@@ -221,8 +221,13 @@ TEST(Viewer, ALateClientGetsTheWholeHistoryAndTheLatestFrame) {
   Viewer v(loopback());
   for (int i = 0; i < 50; ++i) v.push(frame(i));
   v.finish();
-  // Let the viewer thread take them in (it polls).
-  for (int k = 0; k < 200 && v.stats().processed == 0; ++k) std::this_thread::sleep_for(10ms);
+  // Let the viewer thread take all of them in (it polls; under sanitizers it is slow).
+  const auto taken_in = [&v] {
+    const ViewerStats s = v.stats();
+    return s.dropped + s.processed == 50;
+  };
+  for (int k = 0; k < 1000 && !taken_in(); ++k) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(taken_in()) << "the viewer thread did not take the 50 frames in within 10 s";
   WsClient ws(v.port());
   ASSERT_TRUE(ws.connected()) << ws.error();
   ASSERT_TRUE(ws.wait_for([](const auto& ms) { return WsClient::count_type(ms, "status") == 1; }));

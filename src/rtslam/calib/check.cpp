@@ -338,7 +338,9 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
       if (images_done && s->t > window_end + t_d_configured + range + 100'000'000) break;
       continue;
     }
-    auto& f = std::get<io::ImageFrame>(*m);
+    auto* image = std::get_if<io::ImageFrame>(&*m);
+    if (image == nullptr) continue;  // absolute fixes play no part in the calibration check
+    auto& f = *image;
     if (f.camera != camera || images_done) continue;
     if (!onset_t) {
       if (t - *t_first > from_seconds(o.max_wait_s)) break;

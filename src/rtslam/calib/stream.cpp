@@ -73,9 +73,8 @@ nlohmann::json StreamReport::to_json() const {
 void StreamTimes::add(const io::Measurement& m) {
   if (const auto* imu = std::get_if<io::ImuSample>(&m)) {
     imu_t_.push_back(imu->t);
-  } else {
-    const auto& f = std::get<io::ImageFrame>(m);
-    if (f.camera == 0) image_t_.push_back(f.t);  // the first camera: the others share its clock
+  } else if (const auto* f = std::get_if<io::ImageFrame>(&m)) {
+    if (f->camera == 0) image_t_.push_back(f->t);  // the first camera: the others share its clock
   }
 }
 

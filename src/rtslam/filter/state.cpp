@@ -321,6 +321,13 @@ Eigen::Block<const MatrixXd> State::nullspace(BlockId b) const {
   return N_.block(bi.tangent_offset, 0, bi.tangent_size(), options_.nullspace_dim);
 }
 
+void State::set_nullspace(BlockId b, const Eigen::Ref<const MatrixXd>& N) {
+  const BlockInfo& bi = block(b);
+  RTSLAM_CHECK(N.rows() == bi.tangent_size() && N.cols() == options_.nullspace_dim,
+               "State::set_nullspace: the rows must be tangent size x nullspace_dim");
+  N_.block(bi.tangent_offset, 0, bi.tangent_size(), options_.nullspace_dim) = N;
+}
+
 void State::predict_constrained(BlockId id, const Eigen::Ref<const MatrixXd>& F, const Eigen::Ref<const MatrixXd>& Q,
                                 const Eigen::Ref<const MatrixXd>& N_after, int first_col, int n_cols) {
   const int k = options_.nullspace_dim;

@@ -144,6 +144,8 @@ class State {
   int nullspace_dim() const { return options_.nullspace_dim; }
   /// Block b's rows of the basis (tangent size × nullspace_dim).
   Eigen::Block<const MatrixXd> nullspace(BlockId b) const;
+  /// Replaces block b's rows of the basis (the blocks moved as a whole: a change of world frame).
+  void set_nullspace(BlockId b, const Eigen::Ref<const MatrixXd>& N);
 
   // --- prediction -----------------------------------------------------------------------------------------
   /// After the caller has written the predicted mean of block b: P_bb ← F P_bb Fᵀ + Q, P_bo ← F P_bo for every

@@ -11,6 +11,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/io/camera_source.hpp"
 #include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/io/text.hpp"
 #include "rtslam/io/trajectory_io.hpp"
@@ -421,6 +422,36 @@ Dataset open_video(const fs::path& file, const DatasetOptions& o) {
   return ds;
 }
 
+// ---------------------------------------------------------------------------------------------- camera (live)
+
+Dataset open_camera(const std::string& spec, const DatasetOptions& o) {
+  const CameraSpec cam = CameraSpec::parse(spec);
+  if (o.calibration.empty()) {
+    throw ConfigError(fmt::format("camera:{}: a live camera needs its calibration: give --calibration FILE (EuRoC "
+                                  "sensor.yaml, Kalibr camchain.yaml, rtslam rig YAML or MonoSLAM camera.json)",
+                                  spec));
+  }
+  if (o.cameras.size() != 1) {
+    throw ConfigError(fmt::format("camera:{}: one camera per live input (slam/cameras lists {})", spec,
+                                  o.cameras.size()));
+  }
+  Dataset ds;
+  ds.kind = "camera";
+  ds.path = cam.path;
+  ds.name = cam.is_device ? fmt::format("video{}", cam.index) : fs::path(cam.path).stem().string();
+  const Rig all = load_calibration(o.calibration);
+  if (all.cameras.empty()) throw ConfigError(fmt::format("{}: calibration has no camera", o.calibration));
+  ds.rig = all;
+  ds.rig.cameras = {all.cameras.front()};
+  ds.rig.imu.reset();  // no live IMU is read (docs/datasets.md "Live camera")
+  const auto& c = ds.rig.cameras.front();
+  auto src = std::make_unique<CameraSource>(cam, cv::Size(c.width, c.height), o.rate_hz > 0.0 ? o.rate_hz : c.rate_hz,
+                                            o.bad_input);
+  ds.rig.cameras.front().rate_hz = src->rate_hz();
+  ds.source = std::move(src);
+  return ds;
+}
+
 }  // namespace
 
 std::vector<std::string> list_images(const std::string& folder) {
@@ -459,6 +490,21 @@ std::string detect_dataset_kind(const std::string& path) {
                             path));
 }
 
+namespace {
+// The rig's warnings logged, and the start offset / duration window applied.
+Dataset with_window(Dataset ds, const std::string& spec, const DatasetOptions& options) {
+  for (const auto& w : ds.rig.warnings) logger("io")->warn("{}", w);
+  if (options.start_offset_s != 0.0 || options.duration_s != 0.0) {
+    if (!(options.start_offset_s >= 0.0) || !(options.duration_s >= 0.0)) {
+      throw ConfigError(fmt::format("dataset '{}': start offset {} s and duration {} s must be >= 0", spec,
+                                    options.start_offset_s, options.duration_s));
+    }
+    ds.source = std::make_unique<WindowSource>(std::move(ds.source), options.start_offset_s, options.duration_s);
+  }
+  return ds;
+}
+}  // namespace
+
 void DatasetOptions::validate() const {
   const std::string w = "dataset options";
   require_bound(rate_hz == 0.0 || (rate_hz >= kMinRateHz && rate_hz <= kMaxRateHz), w, "rate_hz (--rate)", rate_hz,
@@ -481,19 +527,24 @@ Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
   const size_t colon = spec.find(':');
   if (colon != std::string::npos && colon > 1) {  // "euroc:/data/..." (colon > 1 keeps "C:\\..." paths intact)
     const std::string k = lower(spec.substr(0, colon));
-    if (k == "euroc" || k == "asl" || k == "tum" || k == "kitti" || k == "images" || k == "video" || k == "rosbag") {
+    if (k == "euroc" || k == "asl" || k == "tum" || k == "kitti" || k == "images" || k == "video" || k == "rosbag" ||
+        k == "camera") {
       kind = k == "asl" ? "euroc" : k;
       path = spec.substr(colon + 1);
     } else if (!fs::exists(spec)) {
-      throw ConfigError(fmt::format("dataset '{}': unknown kind '{}' (known: euroc, tum, kitti, images, video, rosbag)",
-                                    spec, k));
+      throw ConfigError(fmt::format(
+          "dataset '{}': unknown kind '{}' (known: euroc, tum, kitti, images, video, rosbag, camera)", spec, k));
     }
   }
   if (kind.empty()) kind = detect_dataset_kind(path);
+  Dataset ds;
+  if (kind == "camera") {
+    ds = open_camera(path, options);
+    return with_window(std::move(ds), spec, options);
+  }
   if (!fs::exists(path)) throw IoError(fmt::format("{}: dataset not found", path));
   const fs::path p = fs::path(path).lexically_normal();
   const fs::path root = p.has_filename() ? p : p.parent_path();
-  Dataset ds;
   if (kind == "euroc") {
     ds = open_euroc(root, options);
   } else if (kind == "tum") {
@@ -507,15 +558,7 @@ Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
   } else {
     ds = open_video(root, options);
   }
-  for (const auto& w : ds.rig.warnings) logger("io")->warn("{}", w);
-  if (options.start_offset_s != 0.0 || options.duration_s != 0.0) {
-    if (!(options.start_offset_s >= 0.0) || !(options.duration_s >= 0.0)) {
-      throw ConfigError(fmt::format("dataset '{}': start offset {} s and duration {} s must be >= 0", spec,
-                                    options.start_offset_s, options.duration_s));
-    }
-    ds.source = std::make_unique<WindowSource>(std::move(ds.source), options.start_offset_s, options.duration_s);
-  }
-  return ds;
+  return with_window(std::move(ds), spec, options);
 }
 
 }  // namespace rtslam::io

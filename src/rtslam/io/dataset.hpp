@@ -14,6 +14,9 @@
 //   rosbag  a ROS1 bag (sensor_msgs/Image or CompressedImage and sensor_msgs/Imu topics, EuRoC's names by
 //           default); calibration from the option (a file or an EuRoC folder) or next to the bag. Only in builds
 //           with ROS (rosbag_source.hpp); detected by the .bag extension.
+//   camera  live input, never detected: camera:N (/dev/videoN through OpenCV's V4L2 backend) or camera:FILE (a video
+//           played in a loop at its rate, standing in for a device); needs the calibration option; endless
+//           (camera_source.hpp).
 #include <memory>
 #include <optional>
 #include <string>
@@ -52,7 +55,7 @@ struct DatasetOptions {
 
 struct Dataset {
   std::string name;  // e.g. "euroc-v101-static"
-  std::string kind;  // "euroc", "tum", "kitti", "images", "video", "rosbag"
+  std::string kind;  // "euroc", "tum", "kitti", "images", "video", "rosbag", "camera"
   std::string path;  // the dataset root as opened
   std::unique_ptr<Source> source;
   Rig rig;

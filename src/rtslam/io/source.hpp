@@ -1,7 +1,7 @@
 #pragma once
 // The measurement stream: every input (dataset reader, video, simulator) becomes one time-ordered sequence of
 // measurements. At equal timestamps IMU samples come before odometry readings, those before images, and images by
-// camera index.
+// camera index; the simulator's absolute fixes (PositionSample, PoseSample) come after the images of their time.
 //
 // Bad input (timestamps that go backwards, duplicates, IMU dropouts, NaNs, malformed lines, missing or undecodable
 // images) is reported with the file and line or timestamp. The policy chooses between stopping with an error
@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
@@ -51,7 +52,20 @@ struct OdometrySample {
   Eigen::Vector3d dtheta = Eigen::Vector3d::Zero();
 };
 
-using Measurement = std::variant<ImuSample, ImageFrame, OdometrySample>;
+/// One absolute position fix (GPS-like): the antenna position in the sensor's world frame (m).
+struct PositionSample {
+  TimeNs t = 0;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+};
+
+/// One absolute pose (motion capture): the marker body's pose T_GM in the sensor's world frame.
+struct PoseSample {
+  TimeNs t = 0;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+};
+
+using Measurement = std::variant<ImuSample, ImageFrame, OdometrySample, PositionSample, PoseSample>;
 
 /// The range of an IMU's readings, per axis. A reading beyond it is saturated or corrupt: its true value is unknown,
 /// so it must never reach the integrator as if it were measured. Without a calibrated full scale the range is the

@@ -129,7 +129,7 @@ std::vector<MapPoint> read_map_ply(const std::string& path) {
 const char* FramesCsvWriter::header() {
   return "#timestamp [ns],camera,landmarks,predicted_visible,searched,matched,updated,initialized,ransac_inliers,"
          "t_predict [ms],t_match [ms],t_ransac [ms],t_update [ms],t_init [ms],t_map [ms],t_total [ms],"
-         "refused,nis,nis_count,health,reset";
+         "refused,nis,nis_count,health,reset,budget_hit,budget_skipped,t_search [ms],absolute_updates,absolute_rejected";
 }
 
 FramesCsvWriter::FramesCsvWriter(const std::string& path) : file_(path), last_flush_(std::chrono::steady_clock::now()) {
@@ -144,7 +144,9 @@ void FramesCsvWriter::write(const FrameStats& s) {
        << format_double(s.t_predict_ms) << ',' << format_double(s.t_match_ms) << ',' << format_double(s.t_ransac_ms)
        << ',' << format_double(s.t_update_ms) << ',' << format_double(s.t_init_ms) << ','
        << format_double(s.t_map_ms) << ',' << format_double(s.t_total_ms) << ',' << s.refused << ','
-       << format_double(s.nis) << ',' << s.nis_count << ',' << s.health << ',' << (s.reset ? 1 : 0) << '\n';
+       << format_double(s.nis) << ',' << s.nis_count << ',' << s.health << ',' << (s.reset ? 1 : 0) << ','
+       << (s.budget_hit ? 1 : 0) << ',' << s.budget_skipped << ',' << format_double(s.t_search_ms) << ','
+       << s.absolute_updates << ',' << s.absolute_rejected << '\n';
   const auto now = std::chrono::steady_clock::now();
   if (!out_ || now - last_flush_ >= std::chrono::seconds(1)) {
     last_flush_ = now;
@@ -166,18 +168,26 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     FrameStats s;
     std::int64_t n[9];
     double ms[7];
-    // 16 columns (files before the health columns) or 21.
-    bool ok = f.size() == 16 || f.size() == 21;
+    // 16 columns (files before the health columns), 21 (before the search budget's), 24 (before the absolute
+    // sensors' counters) or 26.
+    bool ok = f.size() == 16 || f.size() == 21 || f.size() == 24 || f.size() == 26;
     for (size_t k = 0; ok && k < 9; ++k) ok = parse_int64(f[k], n[k]);
     for (size_t k = 0; ok && k < 7; ++k) ok = parse_double(f[9 + k], ms[k]);
     std::int64_t refused = 0, nis_count = 0, health = 0, reset = 0;
     double nis = 0.0;
-    if (ok && f.size() == 21) {
+    std::int64_t abs_updates = 0, abs_rejected = 0;
+    if (ok && f.size() >= 21) {
       ok = parse_int64(f[16], refused) && parse_double(f[17], nis) && parse_int64(f[18], nis_count) &&
            parse_int64(f[19], health) && parse_int64(f[20], reset);
     }
+    std::int64_t budget_hit = 0, budget_skipped = 0;
+    double t_search = 0.0;
+    if (ok && f.size() >= 24) {
+      ok = parse_int64(f[21], budget_hit) && parse_int64(f[22], budget_skipped) && parse_double(f[23], t_search);
+    }
+    if (ok && f.size() == 26) ok = parse_int64(f[24], abs_updates) && parse_int64(f[25], abs_rejected);
     if (!ok) {
-      throw IoError(fmt::format("{}:{}: expected 21 numeric columns ({}) or the first 16 of them", path,
+      throw IoError(fmt::format("{}:{}: expected 26 numeric columns ({}) or the first 24, 21 or 16 of them", path,
                                 in.line_number(), FramesCsvWriter::header()));
     }
     s.t = n[0];
@@ -192,6 +202,11 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     s.nis_count = static_cast<int>(nis_count);
     s.health = static_cast<int>(health);
     s.reset = reset != 0;
+    s.budget_hit = budget_hit != 0;
+    s.budget_skipped = static_cast<int>(budget_skipped);
+    s.t_search_ms = t_search;
+    s.absolute_updates = static_cast<int>(abs_updates);
+    s.absolute_rejected = static_cast<int>(abs_rejected);
     rows.push_back(s);
   }
   return rows;

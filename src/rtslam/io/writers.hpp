@@ -97,6 +97,11 @@ struct FrameStats {
   int nis_count = 0;
   int health = 0;            // 0 ok, 1 tracking lost, 2 diverged (slam/health.hpp)
   bool reset = false;        // the robot and the map were re-initialized after this frame
+  bool budget_hit = false;   // the search's time budget ran out (search/time_budget_ms)
+  int budget_skipped = 0;    // visible landmarks left unsearched because of it
+  double t_search_ms = 0.0;  // the search's time (RANSAC + active search + their corrections)
+  int absolute_updates = 0;  // absolute position/pose fixes applied since the previous frame (and gated out)
+  int absolute_rejected = 0;
 };
 
 /// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), into frames.csv.tmp

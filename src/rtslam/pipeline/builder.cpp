@@ -5,7 +5,10 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/pipeline/starters.hpp"
+#include "rtslam/slam/absolute_sensor.hpp"
 #include "rtslam/slam/odometry_robot.hpp"
+#include "rtslam/slam/time_offset.hpp"
+#include "rtslam/strategies/absolute.hpp"
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
@@ -200,6 +203,7 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
           Eigen::Vector3d::Constant(rot * rot);
       cam.sensor->estimate_extrinsics(var.asDiagonal());
     }
+    slam::apply_time_offset(*cam.sensor, o.time_offset);
     // Each camera's data manager draws from its own stream (the first keeps the single-camera seed).
     std::unique_ptr<slam::DataManager> dm =
         data_managers_.at(o.data_manager)(c, *b.map_manager, cam.intrinsics, robot_seed + 104729 * k);
@@ -210,12 +214,26 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
     cam.sensor->set_data_manager(std::move(dm));
     target.cameras.push_back(cam);
   }
+  // Absolute sensors: their own data manager each (strategies/absolute.hpp).
+  const bool gravity_aligned = o.robot == "inertial";
+  if (o.position_sensor.enabled) {
+    target.position_sensor = &robot->add_sensor(std::make_unique<slam::AbsoluteSensor>(
+        "position", slam::AbsoluteSensor::Kind::Position, o.position_sensor.T_RS()));
+    target.position_sensor->set_data_manager(
+        std::make_unique<strategies::AbsoluteDataManager>(o.position_sensor, gravity_aligned));
+  }
+  if (o.pose_sensor.enabled) {
+    target.pose_sensor = &robot->add_sensor(
+        std::make_unique<slam::AbsoluteSensor>("pose", slam::AbsoluteSensor::Kind::Pose, o.pose_sensor.T_RS()));
+    target.pose_sensor->set_data_manager(std::make_unique<strategies::AbsoluteDataManager>(o.pose_sensor, gravity_aligned));
+  }
   if (o.consistency == "fej") robot->set_first_estimate_jacobians(true);
   target.robot = robot.get();
   std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, target);
   target.starter = starter.get();
   target.input_id = b.system->add_robot(std::move(robot), std::move(starter));
-  b.robots.push_back(BuiltRobot{target.robot, target.starter, target.input_id, target.cameras});
+  b.robots.push_back(BuiltRobot{target.robot, target.starter, target.input_id, target.cameras, target.position_sensor,
+                              target.pose_sensor});
   return b.robots.back();
 }
 

@@ -47,6 +47,9 @@ struct BuiltRobot {
   slam::RobotStarter* starter = nullptr;
   int input_id = -1;  // the robot's proprioceptive stream (slam::ImuData or slam::OdometryData sensor_id)
   std::vector<BuiltCamera> cameras;
+  // Its absolute sensors (position_sensor / pose_sensor enabled), else null.
+  slam::Sensor* position_sensor = nullptr;
+  slam::Sensor* pose_sensor = nullptr;
 };
 
 struct BuiltSystem {
@@ -58,6 +61,9 @@ struct BuiltSystem {
   int input_id = -1;  // the robot's proprioceptive stream (slam::ImuData::sensor_id)
   std::vector<BuiltCamera> cameras;
   const slam::MapManager* map_manager = nullptr;
+  // Absolute sensors (position_sensor / pose_sensor enabled), else null.
+  slam::Sensor* position_sensor = nullptr;
+  slam::Sensor* pose_sensor = nullptr;
   std::vector<BuiltRobot> robots;  // every robot, in the order added (the first: the fields above)
 };
 

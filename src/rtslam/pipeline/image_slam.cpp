@@ -44,6 +44,10 @@ void ImageSlamOptions::validate() const {
   }
   require_bound(rate_hz >= 0.0, where, "rate_hz", rate_hz, ">= 0");
   require_bound(sim_duration_s >= 0.0, "simulation", "duration", sim_duration_s, ">= 0");
+  if (sim_camera_time_offset_ms) {
+    require_bound(std::abs(*sim_camera_time_offset_ms) <= 500.0, "simulation", "camera_time_offset_ms",
+                  *sim_camera_time_offset_ms, "within ±500 ms");
+  }
   if (sim_preset.empty()) throw ConfigError("simulation/preset must not be empty");
   require_bound(overlay_frame >= -1, where, "overlay_frame", overlay_frame, ">= -1");
   if (overlay_frame >= 0 && overlay_path.empty()) throw ConfigError("slam/overlay_frame needs slam/overlay_path");
@@ -65,6 +69,26 @@ void ImageSlamOptions::validate() const {
   map.validate();
   health.validate();
   zero_velocity.validate();
+  time_offset.validate();
+  if (time_offset.estimate && robot != "inertial") {
+    throw ConfigError(fmt::format("camera/time_offset/estimate needs slam/robot = inertial (a camera's time offset is "
+                                  "relative to the IMU clock), not '{}'", robot));
+  }
+  position_sensor.validate("position_sensor");
+  pose_sensor.validate("pose_sensor");
+  for (const auto& [name, a] : {std::pair<const char*, const strategies::AbsoluteSensorOptions*>{"position_sensor",
+                                                                                              &position_sensor},
+                                {"pose_sensor", &pose_sensor}}) {
+    if (!a->enabled) continue;
+    if (!known_landmarks.empty() && a->world == "align") {
+      throw ConfigError(fmt::format("{}/world = align cannot move a map whose frame slam/known_landmarks defines",
+                                    name));
+    }
+  }
+  if (position_sensor.enabled && position_sensor.world == "align" && robot != "inertial") {
+    throw ConfigError("position_sensor/world = align needs slam/robot = inertial (gravity gives roll and pitch, the "
+                      "fixes yaw and translation); with another robot give the frame: world = start");
+  }
 }
 
 std::vector<int> ImageSlamOptions::camera_indices() const {
@@ -112,10 +136,18 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
   read_map_policy(top.child("map_manager"), o.map);
   slam::read_health(top.child("health"), o.health);
   strategies::read_zero_velocity(top.child("zero_velocity"), o.zero_velocity);
+  if (top.has("position_sensor")) strategies::read_absolute_sensor(top.child("position_sensor"), o.position_sensor, false);
+  if (top.has("pose_sensor")) strategies::read_absolute_sensor(top.child("pose_sensor"), o.pose_sensor, true);
+  {
+    YamlMap c = top.child("camera");
+    slam::read_time_offset(c.child("time_offset"), o.time_offset);
+    c.finish();
+  }
   {
     YamlMap s = top.child("simulation");
     s.get("preset", o.sim_preset);
     s.get("duration", o.sim_duration_s);
+    if (s.has("camera_time_offset_ms")) o.sim_camera_time_offset_ms = s.require<double>("camera_time_offset_ms");
     s.finish();
   }
   top.finish();
@@ -157,8 +189,12 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["map_manager"] = map_policy_to_yaml(o.map);
   root["health"] = slam::health_to_yaml(o.health);
   root["zero_velocity"] = strategies::zero_velocity_to_yaml(o.zero_velocity);
+  root["camera"]["time_offset"] = slam::time_offset_to_yaml(o.time_offset);
+  root["position_sensor"] = strategies::absolute_sensor_to_yaml(o.position_sensor, false);
+  root["pose_sensor"] = strategies::absolute_sensor_to_yaml(o.pose_sensor, true);
   root["simulation"]["preset"] = o.sim_preset;
   root["simulation"]["duration"] = o.sim_duration_s;
+  if (o.sim_camera_time_offset_ms) root["simulation"]["camera_time_offset_ms"] = *o.sim_camera_time_offset_ms;
   return root;
 }
 
@@ -175,6 +211,7 @@ io::Dataset make_sim_dataset(const ImageSlamOptions& o) {
   sc.seed = o.seed;
   sc.trajectory_seed.reset();
   if (o.sim_duration_s > 0.0) sc.duration_s = o.sim_duration_s;
+  if (o.sim_camera_time_offset_ms) sc.camera_time_offset_s = 1e-3 * *o.sim_camera_time_offset_ms;
   // The simulator renders camera 0, and camera 1 (the right camera of its stereo rig) when the options use it.
   for (const int c : o.camera_indices()) {
     if (c > 1) throw ConfigError(fmt::format("slam/cameras: the simulator has cameras 0 and 1, not {}", c));
@@ -248,11 +285,16 @@ struct ImageSlam::Impl final : slam::Observer {
     a.removed += b.removed;
     a.evicted += b.evicted;
     a.refused += b.refused;
+    a.absolute_updates += b.absolute_updates;
+    a.absolute_rejected += b.absolute_rejected;
     a.nis += b.nis;
     a.nis_count += b.nis_count;
     a.health = std::max(a.health, b.health);
     a.reset = a.reset || b.reset;
     a.zero_velocity = a.zero_velocity || b.zero_velocity;
+    a.budget_hit = a.budget_hit || b.budget_hit;
+    a.budget_skipped += b.budget_skipped;
+    a.time_search_ms += b.time_search_ms;
     a.time_predict_ms += b.time_predict_ms;
     a.time_match_ms += b.time_match_ms;
     a.time_ransac_ms += b.time_ransac_ms;
@@ -263,12 +305,19 @@ struct ImageSlam::Impl final : slam::Observer {
   }
 
   void on_step(const slam::StepReport& s) override {
+    if (!s.stats.landmark_frame) {  // an absolute fix: no pose of its own, counted in the next frame
+      fixes_since_frame.absolute_updates += s.stats.absolute_updates;
+      fixes_since_frame.absolute_rejected += s.stats.absolute_rejected;
+      fixes_since_frame.refused += s.stats.refused;
+      return;
+    }
     const bool same_time = !result.frames.empty() && result.frames.back().t == s.raw.t;
     if (same_time) merge(result.frames.back(), s.stats);
     else result.frames.push_back(s.stats);
+    take_fixes(result.frames.back());
     const slam::FrameStats& fs = result.frames.back();
     StampedPose& est = same_time ? result.estimate.poses.back() : result.estimate.poses.emplace_back();
-    est.t = s.raw.t;
+    est.t = s.robot.time();  // the datum's time in the IMU clock, with the estimated time offset when there is one
     const math::Pose T_WR = s.robot.pose();
     est.p_WR = T_WR.p;
     est.q_WR = T_WR.q;
@@ -293,6 +342,14 @@ struct ImageSlam::Impl final : slam::Observer {
       if (overlay) write_overlay(o.overlay_path, f, o.search.n_sigma);
       if (observer) observer(f);
     }
+  }
+
+  // The absolute fixes since the last frame go into the next one (its row of frames.csv is written after it).
+  void take_fixes(slam::FrameStats& f) {
+    f.absolute_updates += fixes_since_frame.absolute_updates;
+    f.absolute_rejected += fixes_since_frame.absolute_rejected;
+    f.refused += fixes_since_frame.refused;
+    fixes_since_frame = {};
   }
 
   void feed_image(std::unique_ptr<MatImage> d, const std::string& path) {
@@ -351,6 +408,28 @@ struct ImageSlam::Impl final : slam::Observer {
       system.feed(std::move(d));
       return true;
     }
+    if (const auto* fix = std::get_if<io::PositionSample>(&*m)) {
+      flush_held();
+      if (built.position_sensor == nullptr) return true;
+      auto d = system.spare<slam::PositionData>();
+      d->t = fix->t;
+      d->sensor_id = built.position_sensor->id();
+      d->p_WA = fix->p;
+      d->has_cov = false;
+      system.feed(std::move(d));
+      return true;
+    }
+    if (const auto* fix = std::get_if<io::PoseSample>(&*m)) {
+      flush_held();
+      if (built.pose_sensor == nullptr) return true;
+      auto d = system.spare<slam::PoseData>();
+      d->t = fix->t;
+      d->sensor_id = built.pose_sensor->id();
+      d->T_WM = math::Pose{fix->q, fix->p};
+      d->has_cov = false;
+      system.feed(std::move(d));
+      return true;
+    }
     auto* frame = std::get_if<io::ImageFrame>(&*m);
     if (frame == nullptr) return true;
     const BuiltCamera* cam = frame->camera >= 0 && static_cast<std::size_t>(frame->camera) < by_rig_index.size()
@@ -375,6 +454,7 @@ struct ImageSlam::Impl final : slam::Observer {
   }
 
   ImageSlamResult finish() {
+    if (!result.frames.empty()) take_fixes(result.frames.back());  // fixes after the last frame
     const slam::System& system = *built.system;
     const slam::Map& map = *built.map;
     const slam::Robot& robot = *built.robot;
@@ -418,6 +498,13 @@ struct ImageSlam::Impl final : slam::Observer {
       result.T_RS_estimate = sensor.T_RS(mean);
       result.T_RS_std = map.state().cov(sensor.block()).diagonal().cwiseSqrt();
     }
+    result.time_offset_stamped_s = to_seconds(t_d);
+    result.time_offset_estimate_s = to_seconds(t_d);
+    if (sensor.time_block() != filter::kNoBlock) {
+      result.time_offset_estimated = true;
+      result.time_offset_estimate_s += sensor.time_offset(mean);
+      result.time_offset_std_s = std::sqrt(map.state().cov(sensor.time_block())(0, 0));
+    }
     const Eigen::Vector3d p_WS = sensor.pose_in_world(mean).p;
     for (const auto& l : map.landmarks()) {
       result.landmarks_created = std::max(result.landmarks_created, l->id() + 1);
@@ -454,6 +541,7 @@ struct ImageSlam::Impl final : slam::Observer {
   std::vector<std::unique_ptr<MatImage>> held;  // several cameras: images of one time not fed yet
   std::vector<std::string> held_paths;
   std::optional<TimeNs> observed_t;             // the time the observer last saw
+  slam::FrameStats fixes_since_frame;           // absolute fixes since the last frame (their counters only)
   bool inertial = false;
   TimeNs t_d = 0;  // t_imu = t_cam + t_d
   double gyro_full_scale = 0.0, accel_full_scale = 0.0;  // 0: unknown

@@ -24,11 +24,15 @@
 //                 min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
 //   health:      see slam/health.hpp               (divergence and lost-tracking detection, recovery)
 //   zero_velocity: see strategies/zero_velocity.hpp (updates v = 0 when the IMU and the images say "at rest")
-//   simulation:  {preset, duration}   (only for runs on the simulator: `rtslam run` without --dataset)
+//   position_sensor, pose_sensor: see strategies/absolute.hpp (GPS-like position, motion-capture pose)
+//   camera:      {time_offset: see slam/time_offset.hpp}  (online camera–IMU time offset, inertial robot)
+//   simulation:  {preset, duration, camera_time_offset_ms}   (only for runs on the simulator: `rtslam run` without
+//                --dataset)
 #include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -43,6 +47,8 @@
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/slam/health.hpp"
 #include "rtslam/slam/managers.hpp"
+#include "rtslam/slam/time_offset.hpp"
+#include "rtslam/strategies/absolute.hpp"
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
@@ -77,6 +83,7 @@ struct ImageSlamOptions {
   std::string overlay_path;           // drawn by viz::draw_overlay (the overlay of `rtslam run --overlays`)
   std::string sim_preset = "handheld";  // simulator preset or YAML file, for runs without a dataset
   double sim_duration_s = 0.0;           // simulated seconds (0: the preset's)
+  std::optional<double> sim_camera_time_offset_ms;  // the simulated images' camera–IMU offset (default: the preset's)
   models::ConstantVelocityParams motion;
   models::OdometryParams odometry;  // odometry robot (slam/robot: odometry): the increments' noise
   InertialOptions imu;
@@ -85,6 +92,14 @@ struct ImageSlamOptions {
   strategies::MapPolicyOptions map;
   slam::HealthOptions health;
   strategies::ZeroVelocityOptions zero_velocity;  // zero-velocity updates at rest (strategies/zero_velocity.hpp)
+  slam::TimeOffsetOptions time_offset;  // camera/time_offset: each camera's t_d estimated online (slam/time_offset.hpp)
+  // Absolute sensors on the robot (strategies/absolute.hpp): a GPS-like antenna position, a motion-capture pose.
+  strategies::AbsoluteSensorOptions position_sensor;
+  strategies::AbsoluteSensorOptions pose_sensor = [] {
+    strategies::AbsoluteSensorOptions p;
+    p.sigma_m = 0.005;
+    return p;
+  }();
   void validate() const;
   /// The cameras used: `cameras`, or {camera}.
   std::vector<int> camera_indices() const;
@@ -136,6 +151,10 @@ struct ImageSlamResult {
   bool extrinsics_estimated = false;
   math::Pose T_RS_calibration, T_RS_estimate;
   Eigen::Matrix<double, 6, 1> T_RS_std = Eigen::Matrix<double, 6, 1>::Zero();
+  // Camera–IMU time offset (camera/time_offset) of the reference camera: the one the images were stamped with, and
+  // the final estimate t_d + δt_d with its std (s).
+  bool time_offset_estimated = false;
+  double time_offset_stamped_s = 0.0, time_offset_estimate_s = 0.0, time_offset_std_s = 0.0;
 };
 
 /// The simulated sequence of `options.sim_preset` (sim::SimConfig::load) with its noise and motion drawn from

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <numbers>
 #include <utility>
 #include <variant>
@@ -164,6 +165,7 @@ SimConfig SimConfig::from_yaml(YamlMap& m, SimConfig c, const std::string& dir) 
     cm.get("noise_std", c.render.noise_std);
     cm.get("motion_blur", c.render.motion_blur);
     cm.get("exposure", c.render.exposure_s);
+    if (cm.has("time_offset_ms")) c.camera_time_offset_s = 1e-3 * cm.require<double>("time_offset_ms");
     cm.finish();
   }
   if (m.has("imu")) {
@@ -178,6 +180,12 @@ SimConfig SimConfig::from_yaml(YamlMap& m, SimConfig c, const std::string& dir) 
     om.finish();
   }
   m.get("threads", c.render.threads);
+  for (const auto& [key, pose] : {std::pair<const char*, bool>{"gps", false}, {"mocap", true}}) {
+    if (!m.has(key)) continue;
+    YamlMap am = m.child(key);
+    (pose ? c.mocap : c.gps).read(am, pose);
+    am.finish();
+  }
   m.finish();
   c.validate();
   return c;
@@ -225,7 +233,11 @@ void SimConfig::validate() const {
   require_bound(render.noise_std >= 0.0, where, "camera.noise_std", render.noise_std, ">= 0");
   require_bound(render.exposure_s >= 0.0 && render.exposure_s < 1.0 / camera.rate_hz, where, "camera.exposure",
                 render.exposure_s, "in [0, 1/rate)");
+  require_bound(std::abs(camera_time_offset_s) <= 0.5, where, "camera.time_offset_ms", 1e3 * camera_time_offset_s,
+                "within ±500 ms");
   require_bound(render.threads >= 1 && render.threads <= 64, where, "threads", render.threads, "in [1, 64]");
+  gps.validate(where + " gps");
+  mocap.validate(where + " mocap");
 }
 
 std::shared_ptr<const Simulation> Simulation::create(const SimConfig& config) {
@@ -234,6 +246,7 @@ std::shared_ptr<const Simulation> Simulation::create(const SimConfig& config) {
 
 Simulation::Simulation(const SimConfig& config) : config_(config) {
   config_.validate();
+  time_offset_ = from_seconds(config_.camera_time_offset_s);
   auto log = logger("sim");
   const std::uint64_t traj_seed = config_.trajectory_seed.value_or(config_.seed);
   const TimeNs t_start = from_seconds(config_.start_time_s);
@@ -332,6 +345,10 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
     rig_.imu = imu;
   }
 
+  // Absolute fixes from the ground truth, each from its own seeded stream.
+  if (config_.gps.enabled) gps_ = make_position_fixes(*trajectory_, t0, t1, config_.gps, mix_seed(config_.seed, 5));
+  if (config_.mocap.enabled) mocap_ = make_pose_fixes(*trajectory_, t0, t1, config_.mocap, mix_seed(config_.seed, 6));
+
   ground_truth_.source = "simulation:" + config_.name;
   if (recorded) {
     // Images at the recorded states' timestamps (EuRoC's camera timestamps), the recorded IMU over the same window,
@@ -378,7 +395,8 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
     }
   }
   if (config_.odometry.enabled) {
-    odometry_ = synthesize_odometry(*trajectory_, t0, t1, config_.odometry, Rng(mix_seed(config_.seed, 5)));
+    // Stream 7: 5 and 6 are the GPS and mocap fixes'.
+    odometry_ = synthesize_odometry(*trajectory_, t0, t1, config_.odometry, Rng(mix_seed(config_.seed, 7)));
   }
   auto gt_pose = [this](TimeNs t) {
     const KinematicState s = trajectory_->at(t);
@@ -433,9 +451,23 @@ class SimSource final : public io::Source {
     const auto& img = sim_->image_times();
     const auto& odo = sim_->odometry();
     const bool has_imu = imu_pos_ < imu.size(), has_img = img_pos_ < img.size(), has_odo = odo_pos_ < odo.size();
+    // Absolute fixes come after the IMU samples, odometry readings and images of their time (none while a stereo pair
+    // is half out).
+    const auto& gps = sim_->gps_fixes();
+    const auto& mocap = sim_->mocap_fixes();
+    if (cam_ == 0) {
+      const TimeNs t_other = std::min({has_imu ? imu[imu_pos_].t : kNoTime, has_odo ? odo[odo_pos_].t : kNoTime,
+                                       has_img ? sim_->image_stamp(img_pos_) : kNoTime});
+      if (gps_pos_ < gps.size() && gps[gps_pos_].t < t_other &&
+          (mocap_pos_ >= mocap.size() || gps[gps_pos_].t <= mocap[mocap_pos_].t)) {
+        return gps[gps_pos_++];
+      }
+      if (mocap_pos_ < mocap.size() && mocap[mocap_pos_].t < t_other) return mocap[mocap_pos_++];
+    }
     if (!has_imu && !has_img && !has_odo) return std::nullopt;
-    const bool odo_before_img = has_odo && (!has_img || odo[odo_pos_].t <= img[img_pos_]);
-    if (has_imu && (!has_img || imu[imu_pos_].t <= img[img_pos_]) && (!has_odo || imu[imu_pos_].t <= odo[odo_pos_].t)) {
+    const bool odo_before_img = has_odo && (!has_img || odo[odo_pos_].t <= sim_->image_stamp(img_pos_));
+    if (has_imu && (!has_img || imu[imu_pos_].t <= sim_->image_stamp(img_pos_)) &&
+        (!has_odo || imu[imu_pos_].t <= odo[odo_pos_].t)) {
       const SynthImuSample& s = imu[imu_pos_++];
       ++stats_.imu_samples;
       return io::ImuSample{s.t, s.gyro, s.accel};
@@ -445,7 +477,7 @@ class SimSource final : public io::Source {
       return io::OdometrySample{o.t, o.t_from, o.dp, o.dtheta};
     }
     io::ImageFrame f;
-    f.t = img[img_pos_];
+    f.t = sim_->image_stamp(img_pos_);
     f.camera = cam_;
     f.image = sim_->render_image(img_pos_, cam_);
     f.path = cam_ == 0 ? fmt::format("sim:{}#{}", sim_->config().name, img_pos_)
@@ -466,15 +498,18 @@ class SimSource final : public io::Source {
     const auto& imu = sim_->imu_samples();
     const auto& img = sim_->image_times();
     while (imu_pos_ < imu.size() && imu[imu_pos_].t < t) ++imu_pos_;
-    while (img_pos_ < img.size() && img[img_pos_] < t) ++img_pos_;
+    while (img_pos_ < img.size() && sim_->image_stamp(img_pos_) < t) ++img_pos_;
     while (odo_pos_ < sim_->odometry().size() && sim_->odometry()[odo_pos_].t < t) ++odo_pos_;
+    while (gps_pos_ < sim_->gps_fixes().size() && sim_->gps_fixes()[gps_pos_].t < t) ++gps_pos_;
+    while (mocap_pos_ < sim_->mocap_fixes().size() && sim_->mocap_fixes()[mocap_pos_].t < t) ++mocap_pos_;
     cam_ = 0;
     return true;
   }
 
  private:
   std::shared_ptr<const Simulation> sim_;
-  std::size_t imu_pos_ = 0, img_pos_ = 0, odo_pos_ = 0;
+  static constexpr TimeNs kNoTime = std::numeric_limits<TimeNs>::max();
+  std::size_t imu_pos_ = 0, img_pos_ = 0, odo_pos_ = 0, gps_pos_ = 0, mocap_pos_ = 0;
   int cam_ = 0;
   io::SourceStats stats_;
 };
@@ -501,7 +536,7 @@ void Simulation::write_euroc(const std::string& dir, bool hide_ground_truth) con
   io::EurocWriter writer(dir, rig_);
   for (const SynthImuSample& s : imu_) writer.add_imu(io::ImuSample{s.t, s.gyro, s.accel});
   for (std::size_t k = 0; k < image_times_.size(); ++k)
-    for (int c = 0; c < camera_count(); ++c) writer.add_image(c, image_times_[k], render_image(k, c));
+    for (int c = 0; c < camera_count(); ++c) writer.add_image(c, image_stamp(k), render_image(k, c));
   if (hide_ground_truth) {
     writer.close();
     const fs::path gt_dir = fs::path(dir) / "groundtruth";

@@ -33,6 +33,7 @@
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/source.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
+#include "rtslam/sim/absolute.hpp"
 #include "rtslam/sim/imu.hpp"
 #include "rtslam/sim/odometry.hpp"
 #include "rtslam/sim/renderer.hpp"
@@ -55,9 +56,21 @@ struct SimConfig {
   io::CameraCalibration camera = euroc_cam0();
   io::CameraCalibration camera1 = euroc_cam1();
   RenderOptions render;
+  // Camera–IMU time offset of the data (`camera.time_offset_ms`): an image captured at t (IMU clock) is stamped
+  // t − t_d, so that t_imu = t_cam + t_d as in the calibrations; the rig still says t_d = 0 (an unknown offset).
+  double camera_time_offset_s = 0.0;
   bool imu_enabled = true;
   ImuSynthOptions imu;
   OdometrySynthOptions odometry;  // wheel odometry of the robot frame (odometry.hpp; off unless configured)
+  // Absolute sensors measured from the ground truth (sim/absolute.hpp): a GPS-like position, a motion-capture pose.
+  AbsoluteSimOptions gps;
+  AbsoluteSimOptions mocap = [] {
+    AbsoluteSimOptions m;
+    m.rate_hz = 100.0;
+    m.sigma_m = 0.001;
+    m.sigma_deg = 0.1;
+    return m;
+  }();
 
   /// EuRoC MAV cam0 (mav0/cam0/sensor.yaml): 752x480, 20 Hz, radial-tangential, T_BS as T_RS.
   static io::CameraCalibration euroc_cam0();
@@ -92,8 +105,10 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   /// The rig: camera 0 (and 1 with stereo) with T_RS, the IMU (noise densities, T_RS = identity) when enabled,
   /// t_d = 0.
   const io::Rig& rig() const { return rig_; }
-  /// Image times (every camera renders at each).
+  /// Image times (every camera renders at each): the true capture times, in the IMU clock.
   const std::vector<TimeNs>& image_times() const { return image_times_; }
+  /// The timestamp image k carries in the streams: its capture time less the camera–IMU offset.
+  TimeNs image_stamp(std::size_t k) const { return image_times_[k] - time_offset_; }
   /// IMU samples: synthesized (with the true biases), or recorded (biases unknown: zero).
   const std::vector<SynthImuSample>& imu_samples() const { return imu_; }
   /// Odometry readings (config().odometry.enabled; synthetic trajectories only), streamed by make_source (not
@@ -102,12 +117,16 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   /// Ground truth of R at every IMU sample (at every image without IMU; at the recorded states in recorded mode):
   /// p, q, v, gyro and accel biases.
   const Trajectory& ground_truth() const { return ground_truth_; }
+  /// Absolute fixes (empty unless gps / mocap is enabled), in the world frame W.
+  const std::vector<io::PositionSample>& gps_fixes() const { return gps_; }
+  const std::vector<io::PoseSample>& mocap_fixes() const { return mocap_; }
   /// T_WC of camera c at time t (T_WR(t) * T_RS).
   math::Pose camera_pose(TimeNs t, int c = 0) const;
   /// Renders image k of camera c (deterministic: its noise seed derives from (seed, k, c)).
   cv::Mat render_image(std::size_t k, int c = 0) const;
 
-  /// An in-memory stream (IMU, then odometry, then images at equal timestamps); it keeps this simulation alive.
+  /// An in-memory stream (IMU first at equal timestamps, then odometry, then images, GPS fixes, mocap poses); it keeps
+  /// this simulation alive.
   std::unique_ptr<io::Source> make_source() const;
   /// The stream, rig and ground truth as an io::Dataset (kind "sim"), for `rtslam run` with no dataset.
   io::Dataset make_dataset() const;
@@ -128,9 +147,12 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   std::vector<math::Pose> T_RS_;
   io::Rig rig_;
   std::vector<TimeNs> image_times_;
+  TimeNs time_offset_ = 0;
   std::vector<SynthImuSample> imu_;
   std::vector<SynthOdometry> odometry_;
   Trajectory ground_truth_;
+  std::vector<io::PositionSample> gps_;
+  std::vector<io::PoseSample> mocap_;
 };
 
 /// Mixes a seed with a stream id and an index (splitmix64): independent generators per noise source and frame.

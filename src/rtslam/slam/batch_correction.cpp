@@ -8,7 +8,7 @@ namespace rtslam::slam {
 BatchCorrector::BatchCorrector(int max_observations) : max_obs_(max_observations) {
   RTSLAM_CHECK(max_observations >= 1, "BatchCorrector needs room for at least one observation");
   const int max_cols = 64 + kMaxLandmarkTangent * max_observations;
-  blocks_.reserve(static_cast<std::size_t>(max_observations) + 2);
+  blocks_.reserve(static_cast<std::size_t>(max_observations) + 3);  // + robot, extrinsics, time offset
   used_flags_.reserve(static_cast<std::size_t>(max_observations));
   H_.resize(2 * max_observations, max_cols);
   R_.resize(2 * max_observations, 2 * max_observations);

@@ -83,12 +83,15 @@ void HealthMonitor::restart(TimeNs t) {
 HealthMonitor::Verdict HealthMonitor::check(const Map& map, const Robot& robot, const FrameStats& stats) {
   Verdict v;
   if (!opt_.enabled) return v;
-  if (stats.t - prev_t_ > from_seconds(opt_.max_frame_gap_s)) {
+  // A datum of an absolute sensor (no landmark to match): only the state's sanity is judged below, and the frame
+  // counts neither for the image gaps nor for tracking and NIS.
+  const bool tracking = stats.landmark_frame;
+  if (tracking && stats.t - prev_t_ > from_seconds(opt_.max_frame_gap_s)) {
     ++gaps_;
     v.note = fmt::format("no image for {:.2f} s", to_seconds(stats.t - prev_t_));
     last_tracked_t_ = stats.t;
   }
-  prev_t_ = stats.t;
+  if (tracking) prev_t_ = stats.t;
   const auto x = map.state().mean(robot.block());
   const auto P = map.state().cov(robot.block());
   if (!x.allFinite() || !P.diagonal().allFinite()) {
@@ -112,6 +115,7 @@ HealthMonitor::Verdict HealthMonitor::check(const Map& map, const Robot& robot, 
       return v;
     }
   }
+  if (!tracking) return v;
   if (nis_.size() == static_cast<std::size_t>(opt_.nis_window)) nis_.pop_front();
   nis_.push_back(NisFrame{stats.nis, stats.nis_count});
   if (stats.updated >= opt_.min_updated) last_tracked_t_ = stats.t;

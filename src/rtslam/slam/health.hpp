@@ -13,8 +13,9 @@
 // The verdicts of "lost" and NIS wait grace_s after a (re)start, while the map is being built. A gap of more than
 // max_frame_gap_s between two frames (an image blackout) is noted, and the lost timer starts again at the frame
 // after it: the filter, carried by its motion model or IMU through the gap, gets lost_after_s to find its
-// landmarks again before it is declared lost. The caller decides
-// what to do with a verdict (the pipeline re-initializes the robot from its last healthy state when reset is on).
+// landmarks again before it is declared lost. Data of absolute sensors (FrameStats::landmark_frame false: a GPS
+// fix) are judged for the state's sanity only: they match no landmark, so they count neither as tracked nor as
+// lost, nor as image frames. The caller decides what to do with a verdict (the pipeline re-initializes the robot from its last healthy state when reset is on).
 #include <string>
 
 #include "rtslam/core/ring_buffer.hpp"

@@ -32,6 +32,11 @@ struct FrameStats {
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map
   int refused = 0;  // corrections the filter refused (S not positive definite, a variance would turn negative)
+  // The datum's sensor observes landmarks (a camera). False for absolute sensors (slam/absolute_sensor.hpp): the
+  // health monitor then judges only the state, not the tracking (no landmark is expected to be matched).
+  bool landmark_frame = true;
+  int absolute_updates = 0;   // absolute position/pose corrections applied (strategies/absolute.hpp)
+  int absolute_rejected = 0;  // absolute corrections gated out or refused by the filter
   bool zero_velocity = false;  // a zero-velocity update was applied after the frame (strategies/zero_velocity.hpp)
   // Normalized innovation squared (z − h₀)ᵀ S₀⁻¹ (z − h₀) of the matched observations at their first prediction of
   // the frame, summed, and their number (2 dof each): the health monitor's consistency signal.
@@ -39,6 +44,12 @@ struct FrameStats {
   int nis_count = 0;
   int health = 0;   // slam::Health of the frame (0 ok, 1 lost, 2 diverged) as judged after it
   bool reset = false;  // the robot and the map were re-initialized after this frame
+  // The search's time budget (strategies/active_search.hpp, search/time_budget_ms): whether it ran out in this frame,
+  // the visible landmarks left unsearched because of it, and the search's time (RANSAC + active search + their
+  // corrections, measured by the budget's clock when a budget is set).
+  bool budget_hit = false;
+  int budget_skipped = 0;
+  double time_search_ms = 0.0;
   // Wall times of the frame's stages; predict + match + ransac + update + init + map ≈ total.
   double time_predict_ms = 0.0;  // robots to the datum's time, observation predictions
   double time_match_ms = 0.0;    // appearance matching (ZNCC searches), in every stage

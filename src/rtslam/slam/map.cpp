@@ -32,7 +32,7 @@ std::vector<Sensor*> Map::sensors() const {
 void Map::create_observations(Landmark& lmk) {
   for (const auto& r : robots_) {
     for (const auto& s : r->sensors()) {
-      if (lmk.observation_of(*s)) continue;
+      if (!s->observes_landmarks() || lmk.observation_of(*s)) continue;
       Observation o;
       o.sensor = s.get();
       o.landmark = &lmk;

@@ -31,9 +31,10 @@ struct Observation {
   bool projectable = false;  // in front of the sensor and inside its model's domain
   bool visible = false;      // projectable and inside the field (image)
   Eigen::Vector2d h = Eigen::Vector2d::Zero();
-  // Involved blocks: [robot, sensor (when its extrinsics are estimated), landmark]; the landmark comes last, and the
-  // blocks before it are shared by every observation of the sensor (batched corrections put them first).
-  std::array<filter::BlockId, 3> blocks{filter::kNoBlock, filter::kNoBlock, filter::kNoBlock};
+  // Involved blocks: [robot, sensor extrinsics (when estimated), sensor time offset (when estimated), landmark]; the
+  // landmark comes last, and the blocks before it are shared by every observation of the sensor (batched corrections
+  // put them first).
+  std::array<filter::BlockId, 4> blocks{filter::kNoBlock, filter::kNoBlock, filter::kNoBlock, filter::kNoBlock};
   int block_count = 0;
   std::span<const filter::BlockId> involved() const { return {blocks.data(), static_cast<std::size_t>(block_count)}; }
   std::span<const filter::BlockId> sensor_blocks() const {
@@ -68,7 +69,7 @@ struct Observation {
 };
 
 /// Predicts an observation from a mean vector (the map's, or a RANSAC hypothesis): h, and if `with_jacobians`,
-/// the compressed H over the involved blocks [robot, (sensor,) landmark]. Sets projectable/visible (with `margin` px). Returns
+/// the compressed H over the involved blocks [robot, (extrinsics,) (time offset,) landmark]. Sets projectable/visible (with `margin` px). Returns
 /// `visible`. Allocation-free after the first call for a given observation. With `lin_mean` (first-estimate
 /// Jacobians), H is evaluated at that mean instead (h still at `mean`); the projection must be valid there too,
 /// else H falls back to `mean`.

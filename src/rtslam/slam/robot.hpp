@@ -58,6 +58,10 @@ class Robot {
   /// the linearization point enters.
   virtual void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const = 0;
   static constexpr int kNullspaceDim = 6;
+  /// The pose's rate of change at the robot's time for the block mean in `mean`, in the pose's tangent
+  /// [δp (W) δθ (R, right perturbation)]: xi = [v_WR; ω_R], so that T_WR(t + s) ≈ T_WR ⊞ s·xi. The sensors' time
+  /// offsets (Sensor::estimate_time_offset) move their pose along it. False for a robot that cannot tell it.
+  virtual bool pose_rate(const Eigen::VectorXd& /*mean*/, Eigen::Matrix<double, 6, 1>& /*xi*/) const { return false; }
 
   Sensor& add_sensor(std::unique_ptr<Sensor> sensor);
   /// Gives the sensors without an id one from the map's counter (System::add_robot: data name their sensor before
@@ -104,6 +108,8 @@ class ConstantVelocityRobot final : public Robot {
   /// [p q v ω]: p and v in W move with the world, ω (robot frame) does not.
   void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const override;
   static filter::BlockLayout static_layout();
+  /// [v; ω] of the state.
+  bool pose_rate(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 1>& xi) const override;
   const models::ConstantVelocityParams& params() const { return params_; }
 
  private:
@@ -142,6 +148,11 @@ class InertialRobot final : public Robot {
   /// state, every rotation of the world is unobservable, not only the yaw.
   void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const override;
   static filter::BlockLayout static_layout();
+  /// [v; ω̄_m − ω_b]: v and the gyro bias of the state, ω̄_m the mean gyro reading over the last prediction
+  /// interval (at least 10 ms; the rotation increment over dt, free of the vibration of single readings); before
+  /// the first such interval, the reading at the robot's time interpolated between the buffered samples around it.
+  /// False before any sample.
+  bool pose_rate(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 1>& xi) const override;
   const models::InertialParams& params() const { return params_; }
   long samples_integrated() const { return steps_; }
 
@@ -159,6 +170,10 @@ class InertialRobot final : public Robot {
   models::Vector19d fej_x_, fej_next_;
   models::Matrix18d F_, Q_, Phi_, Qacc_, tmp_;
   Eigen::Matrix<double, 18, 6> N_;
+  // The mean gyro reading over the last prediction interval(s) spanning at least 10 ms (pose_rate).
+  Eigen::Vector3d gyro_sum_ = Eigen::Vector3d::Zero(), gyro_mean_ = Eigen::Vector3d::Zero();
+  TimeNs gyro_span_ = 0;
+  bool gyro_mean_valid_ = false;
 };
 
 }  // namespace rtslam::slam

@@ -1,5 +1,6 @@
 #include "rtslam/slam/system.hpp"
 
+#include <algorithm>
 #include <chrono>
 
 #include <fmt/format.h>
@@ -44,7 +45,13 @@ System::Slot* System::slot_of_sensor(int sensor_id, const Sensor** sensor) {
   return nullptr;
 }
 
-bool System::covered(TimeNs t) const {
+TimeNs System::filter_time(const RawData& datum, const Sensor& sensor) const {
+  return sensor.robot().in_map() ? datum.t + sensor.time_shift(map_.state().mean_vector()) : datum.t;
+}
+
+bool System::covered(const RawData& datum) {
+  const Sensor* sensor = nullptr;
+  const TimeNs t = slot_of_sensor(datum.sensor_id, &sensor) != nullptr ? filter_time(datum, *sensor) : datum.t;
   for (const Slot& s : slots_) {
     if (s.robot->needs_inputs() && (!s.last_input_t || *s.last_input_t < t)) return false;
   }
@@ -79,7 +86,7 @@ void System::feed(std::unique_ptr<RawData> datum) {
       recycle(std::move(datum));
     }
     // At equal timestamps the input comes first: data up to its time are covered now.
-    while (!pending_.empty() && covered(pending_.front()->t)) {
+    while (!pending_.empty() && covered(*pending_.front())) {
       std::unique_ptr<RawData> d = std::move(pending_.front());
       pending_.pop_front();
       handle(*d);
@@ -91,7 +98,7 @@ void System::feed(std::unique_ptr<RawData> datum) {
   if (slot_of_sensor(datum->sensor_id, &sensor) == nullptr) {
     throw DataError(fmt::format("datum at t = {} ns names unknown sensor {}", datum->t, datum->sensor_id));
   }
-  if (pending_.empty() && covered(datum->t)) {
+  if (pending_.empty() && covered(*datum)) {
     handle(*datum);
     recycle(std::move(datum));
     return;
@@ -115,26 +122,30 @@ void System::handle(const RawData& datum) {
     step(*slot, *sensor, datum);
     return;
   }
+  // A robot starts from the data of its landmark sensors; an absolute fix before the start has nothing to correct.
+  if (!sensor->observes_landmarks()) return;
   const std::optional<RobotStart> s = slot->starter->offer(datum, slot->recent);
   if (!s) return;
-  start(*slot, *s);
+  start(*slot, *s, *sensor);
   for (const RawData* d : s->replay) {
     if (finished()) break;
     step(*slot, *sensor, *d);
   }
 }
 
-void System::start(Slot& slot, const RobotStart& s) {
+void System::start(Slot& slot, const RobotStart& s, const Sensor& sensor) {
   const bool first = !slot.counts.started;
   if (first) {
-    map_.add_robot(std::move(slot.waiting), s.x, s.P, s.t);
+    map_.add_robot(std::move(slot.waiting), s.x, s.P, s.t);  // (a time offset's block starts at 0 residual)
     for (std::size_t k = 0; k < slot.recent.size(); ++k) slot.robot->add_input(slot.recent[k]);
     if (slot.latest_input) {
       slot.robot->add_input(*slot.latest_input);
       recycle(std::move(slot.latest_input));
     }
   } else {
-    slot.robot->reset(slot.robot->reanchor(s.x, slot.last_good_x, options_.health), s.P, s.t);
+    // The start is at the time of the sensor's datum: in the robot's clock, shifted by the current time offset.
+    const TimeNs t = std::max(s.t + sensor.time_shift(map_.state().mean_vector()), slot.robot->time());
+    slot.robot->reset(slot.robot->reanchor(s.x, slot.last_good_x, options_.health), s.P, t);
   }
   slot.counts.started = true;
   slot.counts.start = s.description;
@@ -183,9 +194,22 @@ FrameStats System::process(const RawData& raw) {
   if (!sensor.data_manager()) throw ConfigError(fmt::format("sensor '{}' has no data manager", sensor.name()));
   FrameStats stats;
   stats.t = raw.t;
-  // Every robot of the map moves to the datum's time (robots share the map's covariance).
+  // Every robot of the map moves to the datum's time in the robots' clock: its stamp shifted by the sensor's current
+  // time offset estimate (robots share the map's covariance). A shift that would take the sensor's robot back in
+  // time (the estimate decreased, or another camera of the same time was processed with a larger one) is raised to
+  // the robot's time, and one beyond the inputs (a start's replayed data were covered at the shift of their time) is
+  // cut there: the sensor's pose model moves the robot by the rest (Sensor::pose_in_world).
+  TimeNs t = raw.t;
+  if (sensor.time_block() != filter::kNoBlock) {
+    t = raw.t + sensor.time_shift(map_.state().mean_vector());
+    for (const Slot& s : slots_) {
+      if (s.robot->in_map() && s.robot->needs_inputs() && s.last_input_t) t = std::min(t, std::max(raw.t, *s.last_input_t));
+    }
+    if (t < sensor.robot().time() && raw.t + sensor.max_time_shift() >= sensor.robot().time()) t = sensor.robot().time();
+    sensor.set_applied_time_shift(t - raw.t);
+  }
   for (const auto& r : map_.robots()) {
-    if (!r->predict_to(raw.t)) {
+    if (!r->predict_to(t)) {
       throw DataError(fmt::format("datum at t = {} ns is older than robot '{}' (t = {} ns): timestamps go backwards",
                                   raw.t, r->name(), r->time()));
     }
@@ -194,12 +218,13 @@ FrameStats System::process(const RawData& raw) {
   stats.time_predict_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   sensor.data_manager()->process(map_, sensor, raw, frame_, stats);
   const auto t2 = std::chrono::steady_clock::now();
-  map_manager_->manage(map_, sensor, frame_, stats);
+  stats.landmark_frame = sensor.observes_landmarks();
+  if (stats.landmark_frame) map_manager_->manage(map_, sensor, frame_, stats);
   const auto t3 = std::chrono::steady_clock::now();
   stats.time_map_ms = std::chrono::duration<double, std::milli>(t3 - t2).count();
   stats.time_total_ms = std::chrono::duration<double, std::milli>(t3 - t0).count();
   stats.landmarks_in_map = static_cast<int>(map_.landmarks().size());
-  ++frame_;
+  if (stats.landmark_frame) ++frame_;  // frames count the landmark sensors' data (absolute fixes come in between)
   return stats;
 }
 

@@ -119,6 +119,7 @@ class System {
   /// The loop's inner step, public for callers that drive robots themselves (tests).
   FrameStats process(const RawData& raw);
 
+  /// Data of landmark-observing sensors processed (absolute fixes are not counted: they come between frames).
   long steps() const { return frame_; }
   bool finished() const { return options_.max_steps > 0 && frame_ >= options_.max_steps; }
   std::size_t pending() const { return pending_.size(); }
@@ -157,9 +158,12 @@ class System {
     RobotCounts counts;
   };
   Slot* slot_of_sensor(int sensor_id, const Sensor** sensor);
-  bool covered(TimeNs t) const;
+  /// The datum's time in the robots' clock: its stamp plus its sensor's time shift (Sensor::time_shift).
+  TimeNs filter_time(const RawData& datum, const Sensor& sensor) const;
+  /// The inputs of every robot that needs them cover the datum's filter time.
+  bool covered(const RawData& datum);
   void handle(const RawData& datum);
-  void start(Slot& slot, const RobotStart& s);
+  void start(Slot& slot, const RobotStart& s, const Sensor& sensor);
   void step(Slot& slot, const Sensor& sensor, const RawData& datum);
   void recycle(std::unique_ptr<RawData> datum);
 

@@ -47,6 +47,8 @@ void ActiveSearchOptions::validate(const std::string& where) const {
   if (depth_prior != "fixed" && depth_prior != "scene") {
     throw ConfigError(fmt::format("{}: depth_prior = '{}' must be fixed or scene", where, depth_prior));
   }
+  require_bound(time_budget_ms >= 0.0 && time_budget_ms <= kMaxTimeBudgetMs, where, "time_budget_ms", time_budget_ms,
+                fmt::format("0 (off) or in (0, {:g}] ms", kMaxTimeBudgetMs));
   require_bound(scene_prior_min_points >= 1 && scene_prior_min_points <= 1000, where, "scene_prior_min_points",
                 scene_prior_min_points, "in [1, 1000]");
   harris.validate(where + "/harris");
@@ -73,6 +75,7 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   map.get("depth_prior", o.depth_prior);
   map.get("depth_prior_sigma_ratio", o.prior.sigma_ratio);
   map.get("scene_prior_min_points", o.scene_prior_min_points);
+  map.get("time_budget_ms", o.time_budget_ms);
   {
     YamlMap g = map.child("grid");
     g.get("cells_x", o.grid.cells_x);
@@ -113,6 +116,7 @@ YAML::Node ActiveSearchOptions::to_yaml() const {
   s["depth_prior"] = depth_prior;
   s["depth_prior_sigma_ratio"] = prior.sigma_ratio;
   s["scene_prior_min_points"] = scene_prior_min_points;
+  s["time_budget_ms"] = time_budget_ms;
   s["grid"]["cells_x"] = grid.cells_x;
   s["grid"]["cells_y"] = grid.cells_y;
   s["grid"]["margin_px"] = grid.margin_px;
@@ -126,7 +130,26 @@ vision::ZnccOptions exhaustive(vision::ZnccOptions o) {
   o.two_level = false;
   return o;
 }
+
+class SteadyBudgetClock final : public BudgetClock {
+ public:
+  double now_ms() override {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  }
+};
+SteadyBudgetClock g_steady_budget_clock;  // stateless: shared by every manager
 }  // namespace
+
+void ActiveSearchDataManager::set_budget_clock(BudgetClock* clock) {
+  clock_ = clock != nullptr ? clock : &g_steady_budget_clock;
+}
+
+bool ActiveSearchDataManager::may_search() {
+  if (opt_.time_budget_ms <= 0.0) return true;
+  if (budget_spent_) return false;
+  budget_spent_ = clock_->now_ms() - budget_start_ms_ >= opt_.time_budget_ms;
+  return !budget_spent_;
+}
 
 ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, const slam::MapManager& map_manager,
                                                  int width, int height, std::uint64_t seed)
@@ -137,6 +160,7 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
       matcher_(opt_.zncc),
       matcher_small_(exhaustive(opt_.zncc)),
       harris_(opt_.harris) {
+  set_budget_clock(nullptr);
   candidates_.reserve(512);
   order_.reserve(512);
   untried_.reserve(512);
@@ -202,6 +226,7 @@ bool ActiveSearchDataManager::predict_patch(const slam::Map& map, const slam::Se
 
 bool ActiveSearchDataManager::search(Candidate& c, const vision::SearchEllipse& region, vision::ZnccMatcher& matcher,
                                      Eigen::Vector2d& z, double& score) {
+  ++searches_;
   const auto t0 = std::chrono::steady_clock::now();
   const vision::MatchResult r = matcher.match(patches_[static_cast<size_t>(c.slot)], image_, region);
   match_ms_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -321,14 +346,19 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     ++stats.updated;
   };
 
-  // 2. One-point RANSAC with data association.
+  // 2. One-point RANSAC with data association. The search budget (if any) starts now.
   match_ms_ = 0.0;
+  searches_ = 0;
+  budget_spent_ = false;
+  const bool budgeted = opt_.time_budget_ms > 0.0;
+  if (budgeted) budget_start_ms_ = clock_->now_ms();
   if (opt_.ransac_ntries > 0 && opt_.max_updates_ransac >= 2 && candidates_.size() >= 2) {
     untried_.clear();
     for (Candidate* c : order_) untried_.push_back(c->slot);
     best_support_.clear();
     best_support_z_.clear();
     for (int t = 0; t < opt_.ransac_ntries && !untried_.empty(); ++t) {
+      if (!may_search()) break;  // the budget is spent: no new hypothesis (each needs a full-ellipse search)
       const auto k = std::uniform_int_distribution<size_t>(0, untried_.size() - 1)(rng_);
       const int i = untried_[k];
       untried_.erase(untried_.begin() + static_cast<std::ptrdiff_t>(k));
@@ -355,6 +385,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
         if (cj->slot == i) continue;
         slam::Observation& oj = *cj->obs;
         if (!slam::predict_observation(state, hyp_mean_, oj, 0.0, false) || !oj.projectable) continue;
+        if (!may_search()) break;  // the budget is spent: the support found so far competes as it is
         Eigen::Vector2d z;
         double score = 0.0;
         if (search(*cj, vision::SearchEllipse::box(oj.h, opt_.ransac_low_innov_px, opt_.ransac_low_innov_px),
@@ -400,6 +431,10 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     while (next < order_.size() && static_cast<int>(batch_.size()) < budget) {
       Candidate& c = *order_[next++];
       if (c.done) continue;
+      if (budget_spent_ && !c.full_searched) {  // the budget is spent: skipped, not even re-predicted
+        ++stats.budget_skipped;
+        continue;
+      }
       slam::Observation& o = *c.obs;
       if (!slam::predict_observation(state, state.mean_vector(), o, 0.0, true, lin())) continue;
       slam::compute_innovation_covariance(state, o, opt_.sigma_px, opt_.second_order_depth);
@@ -408,6 +443,10 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       if (static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) continue;
       bool found = c.full_matched;  // a RANSAC hypothesis that lost keeps its full-ellipse match (gated below)
       if (!c.full_searched) {
+        if (!may_search()) {  // the budget is spent: skipped, neither searched nor failed
+          ++stats.budget_skipped;
+          continue;
+        }
         count_search(c);
         found = search(c, region, matcher_, c.z, c.score);
       }
@@ -433,6 +472,9 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   // prediction need it applied: done here, so that its cost shows as the update's.
   state.apply_pending();
   const auto t2 = Clock::now();
+  stats.budget_hit = budget_spent_;
+  stats.time_search_ms = budgeted ? clock_->now_ms() - budget_start_ms_
+                                  : std::chrono::duration<double, std::milli>(t2 - t1).count();
 
   // 4. Initialization in the empty cells of the moving grid.
   initialize(map, sensor, frame, stats);

@@ -12,6 +12,14 @@
 //  3. the remaining candidates, by expected information (largest det S first), are re-predicted at the corrected
 //     state, searched in their (now small) n_sigma ellipses, gated by Mahalanobis distance (n_sigma²) and corrected
 //     in `gain_recomputations` batched rounds, until `max_updates` updates in the frame;
+// With `time_budget_ms` > 0 the search of stages 2 and 3 stops anytime (the paper's real-time search): from the end
+// of the predictions, the budget clock is read before each ZNCC search and, once the budget is spent, no new search
+// starts — no further RANSAC hypothesis or support search, and the remaining candidates of stage 3 are skipped (not
+// counted as failures for the map manager). What was matched is kept: the best support set and the candidates
+// already matched are still gated and corrected. Since candidates are searched by decreasing det S, the ones left
+// out are those whose observation was expected to bring the least information. FrameStats counts the skipped
+// landmarks, whether the budget cut the frame and the time used. Off (0), the clock is never read and the result
+// does not depend on time.
 //  4. initialization: in the empty cells of the randomly moving grid, the best Harris corner of the cell becomes an
 //     undelayed AHP landmark (at most `max_inits` per frame, if the map manager has room); its descriptor is the
 //     `init_patch_size` patch around the corner plus the sensor pose T_WS it was seen from.
@@ -20,6 +28,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -81,16 +90,30 @@ struct ActiveSearchOptions {
   // the scale towards it (a 1–13 % scale error on the recorded V1_01 flight), a mean taken from the map does not.
   std::string depth_prior = "scene";
   int scene_prior_min_points = 3;
+  // Stop-anytime search: wall time (ms) for stages 2 and 3 (RANSAC, active search and their corrections) from the
+  // end of the predictions; 0: off. `rtslam run --realtime` sets one from the frame period when this is 0
+  // (docs/configuration.md).
+  double time_budget_ms = 0.0;
   vision::HarrisOptions harris;
   vision::ZnccOptions zncc;           // MATCH_TH 0.90, patch 15
+  static constexpr double kMaxTimeBudgetMs = 10000.0;
   /// `where` names the options in messages (their config section, e.g. "search/zncc", or the file and section).
   void validate(const std::string& where = "search") const;
   /// Keys: sigma_px, second_order_depth, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_low_innov_px,
-  /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min,
+  /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min, time_budget_ms,
   /// grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors; validates.
   static ActiveSearchOptions from_yaml(YamlMap& map);
   /// The keys of from_yaml with their values (the effective configuration).
   YAML::Node to_yaml() const;
+};
+
+/// The clock of the search's time budget: milliseconds on a monotonic scale (any origin). The default reads
+/// std::chrono::steady_clock; tests inject a fake one (e.g. one that advances at each reading, that is at each
+/// search attempt).
+class BudgetClock {
+ public:
+  virtual ~BudgetClock() = default;
+  virtual double now_ms() = 0;
 };
 
 class ActiveSearchDataManager final : public slam::DataManager {
@@ -107,6 +130,10 @@ class ActiveSearchDataManager final : public slam::DataManager {
   void set_depth_hint(double depth_m) { depth_hint_m_ = depth_m > 0.0 && std::isfinite(depth_m) ? depth_m : 0.0; }
   /// First-estimate Jacobians for the observations (slam/consistency: fej; see process()).
   void set_first_estimate_jacobians(bool on) { fej_ = on; }
+  /// The clock the time budget is measured with (not owned; must outlive the manager); nullptr: steady_clock.
+  void set_budget_clock(BudgetClock* clock);
+  /// ZNCC searches (full ellipses and RANSAC support boxes) run in the last frame.
+  int last_frame_searches() const { return searches_; }
 
   /// What happened to one visible observation in the last frame (overlays, tests).
   struct FrameMatch {
@@ -158,6 +185,13 @@ class ActiveSearchDataManager final : public slam::DataManager {
   InitGrid grid_;
   Rng rng_;
   double match_ms_ = 0.0;              // time spent in search() this frame
+  int searches_ = 0;                   // search() calls this frame
+  BudgetClock* clock_ = nullptr;       // the budget's clock (default_clock_ unless set)
+  // The frame's budget (time_budget_ms > 0): start reading and whether it is spent.
+  double budget_start_ms_ = 0.0;
+  bool budget_spent_ = false;
+  /// Whether a new search may start (always with the budget off; reads the clock otherwise).
+  bool may_search();
   vision::ZnccMatcher matcher_;        // full ellipses (two-level as configured)
   vision::ZnccMatcher matcher_small_;  // tiny RANSAC boxes: exhaustive
   int reserved_width_ = 0, reserved_height_ = 0;  // image size the matchers' buffers were grown for

@@ -133,6 +133,9 @@ slam::FrameStats from_io(const io::FrameStats& f) {
   s.time_init_ms = f.t_init_ms;
   s.time_map_ms = f.t_map_ms;
   s.time_total_ms = f.t_total_ms;
+  s.budget_hit = f.budget_hit;
+  s.budget_skipped = f.budget_skipped;
+  s.time_search_ms = f.t_search_ms;
   return s;
 }
 

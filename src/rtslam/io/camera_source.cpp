@@ -1,0 +1,160 @@
+#include "rtslam/io/camera_source.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <thread>
+
+#include <fmt/format.h>
+#include <opencv2/videoio.hpp>
+
+#include "rtslam/core/error.hpp"
+
+namespace rtslam::io {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+TimeNs steady_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+bool all_digits(const std::string& s) {
+  if (s.empty() || s.size() > 3) return false;
+  for (char c : s)
+    if (c < '0' || c > '9') return false;
+  return true;
+}
+
+}  // namespace
+
+CameraSpec CameraSpec::parse(const std::string& spec) {
+  CameraSpec c;
+  constexpr std::string_view kDev = "/dev/video";
+  if (all_digits(spec)) {
+    c.is_device = true;
+    c.index = std::stoi(spec);
+    c.path = fmt::format("{}{}", kDev, c.index);
+    return c;
+  }
+  if (spec.compare(0, kDev.size(), kDev) == 0 && all_digits(spec.substr(kDev.size()))) {
+    c.is_device = true;
+    c.index = std::stoi(spec.substr(kDev.size()));
+    c.path = spec;
+    return c;
+  }
+  if (fs::is_regular_file(spec)) {
+    c.path = spec;
+    return c;
+  }
+  throw ConfigError(fmt::format("camera:{}: not a camera (give its number N for /dev/videoN, or /dev/videoN) nor a "
+                                "video file standing in for one",
+                                spec));
+}
+
+TimeNs camera_frame_time(double driver_ms, TimeNs grab_ns, TimeNs previous_ns) {
+  if (driver_ms > 0.0 && std::isfinite(driver_ms) && driver_ms < 9.2e12) {
+    const auto driver_ns = static_cast<TimeNs>(std::llround(driver_ms * 1e6));
+    if (driver_ns <= grab_ns + 1'000'000 && driver_ns >= grab_ns - kNsPerSecond && driver_ns > previous_ns) {
+      return driver_ns;
+    }
+  }
+  return grab_ns > previous_ns ? grab_ns : previous_ns + 1;
+}
+
+CameraSource::CameraSource(const CameraSpec& spec, cv::Size expected_size, double rate_hz, BadInputPolicy policy)
+    : spec_(spec), expected_size_(expected_size), rate_hz_(rate_hz), reporter_(policy, stats_) {
+  if (spec_.is_device) {
+    if (!fs::exists(spec_.path)) {
+      throw IoError(fmt::format("{}: no such camera device (camera:{}); `v4l2-ctl --list-devices` lists them",
+                                spec_.path, spec_.index));
+    }
+    capture_ = std::make_unique<cv::VideoCapture>(spec_.index, cv::CAP_V4L2);
+    if (!capture_->isOpened()) {
+      throw IoError(fmt::format("{}: cannot open the camera through OpenCV's V4L2 backend (busy, no permission, or "
+                                "not a capture device)",
+                                spec_.path));
+    }
+    if (expected_size_.width > 0 && expected_size_.height > 0) {
+      capture_->set(cv::CAP_PROP_FRAME_WIDTH, expected_size_.width);
+      capture_->set(cv::CAP_PROP_FRAME_HEIGHT, expected_size_.height);
+    }
+    if (rate_hz_ > 0.0) capture_->set(cv::CAP_PROP_FPS, rate_hz_);
+    const double fps = capture_->get(cv::CAP_PROP_FPS);
+    rate_hz_ = fps > 0.0 && std::isfinite(fps) ? fps : rate_hz_;
+    return;
+  }
+  capture_ = std::make_unique<cv::VideoCapture>(spec_.path);
+  if (!capture_->isOpened()) {
+    throw IoError(fmt::format("{}: cannot open the video standing in for a camera (unknown format or codec)",
+                              spec_.path));
+  }
+  if (!(rate_hz_ > 0.0)) rate_hz_ = capture_->get(cv::CAP_PROP_FPS);
+  if (!(rate_hz_ > 0.0) || !std::isfinite(rate_hz_)) {
+    throw ConfigError(fmt::format("{}: the video does not state its frame rate: give the rate option", spec_.path));
+  }
+}
+
+CameraSource::~CameraSource() = default;
+
+bool CameraSource::grab_file(cv::Mat& raw) {
+  if (capture_->read(raw) && !raw.empty()) return true;
+  if (index_ == 0) throw IoError(fmt::format("{}: no frame could be read from the video", spec_.path));
+  // The end of the file: from its start again (reopened: not every backend can seek back).
+  capture_->open(spec_.path);
+  ++loops_;
+  return capture_->isOpened() && capture_->read(raw) && !raw.empty();
+}
+
+std::optional<Measurement> CameraSource::next() {
+  while (true) {
+    cv::Mat raw;
+    TimeNs grab_ns = 0;
+    double driver_ms = 0.0;
+    if (spec_.is_device) {
+      if (!capture_->grab()) {
+        throw IoError(fmt::format("{}: the camera stopped delivering frames after {} (unplugged?)", spec_.path,
+                                  index_));
+      }
+      grab_ns = steady_now_ns();
+      driver_ms = capture_->get(cv::CAP_PROP_POS_MSEC);
+      if (!capture_->retrieve(raw) || raw.empty()) {
+        reporter_.report(&SourceStats::undecodable_images,
+                         fmt::format("{}#{}: the frame could not be retrieved", spec_.path, index_++), true);
+        continue;
+      }
+    } else {
+      // A device delivers a frame every 1/rate s: so does the stand-in.
+      if (start_ns_) {
+        const TimeNs due = *start_ns_ + from_seconds(static_cast<double>(index_) / rate_hz_);
+        const TimeNs now = steady_now_ns();
+        if (due > now) std::this_thread::sleep_for(std::chrono::nanoseconds(due - now));
+      }
+      if (!grab_file(raw)) throw IoError(fmt::format("{}: cannot read the video again from its start", spec_.path));
+      grab_ns = steady_now_ns();
+      if (!start_ns_) start_ns_ = grab_ns;
+    }
+    ImageFrame frame;
+    frame.t = camera_frame_time(driver_ms, grab_ns, previous_ns_);
+    previous_ns_ = frame.t;
+    frame.path = fmt::format("{}#{}", spec_.path, index_++);
+    std::string why;
+    frame.image = to_grey8(raw, &why, &image_bits_);
+    if (frame.image.empty()) {
+      reporter_.report(&SourceStats::unsupported_images, fmt::format("{}: frame {}", frame.path, why), true);
+      continue;
+    }
+    if (expected_size_.width > 0 && expected_size_.height > 0 && frame.image.size() != expected_size_) {
+      reporter_.report(&SourceStats::wrong_size_images,
+                       fmt::format("{}: frame is {}x{}, the calibration says {}x{}", frame.path, frame.image.cols,
+                                   frame.image.rows, expected_size_.width, expected_size_.height));
+      continue;
+    }
+    ++stats_.images;
+    return frame;
+  }
+}
+
+}  // namespace rtslam::io

@@ -1,0 +1,73 @@
+#pragma once
+// Live input (`rtslam run --dataset camera:N`, docs/datasets.md "Live camera"): a V4L2 camera read through OpenCV's
+// VideoCapture (V4L2 backend), or a video file standing in for one (`camera:FILE`: the file is played in a loop at
+// its frame rate, paced by the wall clock as a device would deliver it; the tests use it on machines without a
+// camera). The stream is endless: a run ends with --stop-after (seconds of input), Ctrl-C, or a device error.
+//
+// Timestamps (TimeNs on std::chrono::steady_clock, i.e. CLOCK_MONOTONIC on Linux): for a device, the driver's
+// buffer timestamp when it is plausible (camera_frame_time below), else the steady clock right after the grab; for
+// the stand-in file, the steady clock after the grab. Frames are converted to 8-bit grey (to_grey8). The calibration
+// (io::Rig, from --calibration: the existing loaders) gives the expected image size, which is asked of the device;
+// frames of another size are bad input (wrong_size_images). No IMU: a live IMU is not read (docs/datasets.md says
+// what exists for pairing one).
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "rtslam/core/time.hpp"
+#include "rtslam/io/source.hpp"
+
+namespace rtslam::io {
+
+/// Which device "camera:SPEC" names: a V4L2 index ("0", "/dev/video0") or a video file standing in for one.
+struct CameraSpec {
+  bool is_device = false;
+  int index = -1;     // /dev/video<index> when a device
+  std::string path;   // "/dev/videoN", or the video file
+  /// Parses SPEC (the part after "camera:"); throws ConfigError naming it when it is neither a device number, a
+  /// /dev/videoN path nor an existing file.
+  static CameraSpec parse(const std::string& spec);
+};
+
+/// The timestamp of a frame grabbed at `grab_ns` (steady clock) whose driver reported `driver_ms` (OpenCV's
+/// CAP_PROP_POS_MSEC: with the V4L2 backend the v4l2_buffer timestamp, CLOCK_MONOTONIC for UVC and most drivers;
+/// <= 0 when none). The driver's time is taken when it is plausible on the same clock: at most 1 ms after the grab,
+/// at most 1 s before it, and after the previous frame's `previous_ns`; otherwise the grab time (always after
+/// `previous_ns`: the stream's times strictly increase).
+TimeNs camera_frame_time(double driver_ms, TimeNs grab_ns, TimeNs previous_ns);
+
+class CameraSource final : public Source {
+ public:
+  /// `expected_size`: the calibration's image size (asked of a device; 0x0: unchecked). `rate_hz`: asked of a device,
+  /// and the stand-in file's playback rate (0: the device's own / the file's container rate).
+  CameraSource(const CameraSpec& spec, cv::Size expected_size, double rate_hz, BadInputPolicy policy);
+  ~CameraSource() override;
+  CameraSource(const CameraSource&) = delete;
+  CameraSource& operator=(const CameraSource&) = delete;
+
+  std::optional<Measurement> next() override;
+  const SourceStats& stats() const override { return stats_; }
+  /// The rate the source delivers at (the device's reported rate, or the file's playback rate; 0: unknown).
+  double rate_hz() const { return rate_hz_; }
+  /// Times the stand-in file was rewound to its start.
+  std::size_t loops() const { return loops_; }
+
+ private:
+  bool grab_file(cv::Mat& raw);
+
+  CameraSpec spec_;
+  cv::Size expected_size_;
+  double rate_hz_ = 0.0;
+  SourceStats stats_;
+  BadInputReporter reporter_;
+  std::unique_ptr<cv::VideoCapture> capture_;
+  std::size_t index_ = 0;
+  std::size_t loops_ = 0;
+  int image_bits_ = 8;
+  TimeNs previous_ns_ = 0;
+  std::optional<TimeNs> start_ns_;  // the stand-in's pacing origin (steady clock at the first frame)
+};
+
+}  // namespace rtslam::io

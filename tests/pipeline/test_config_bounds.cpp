@@ -65,6 +65,23 @@ TEST(SlamBounds, StateCapacityAndOtherSlamKeysHaveUpperBounds) {
   EXPECT_NE(error_of([&] { validate_slam_bounds(o); }).find("slam: rate_hz = 1e-300"), std::string::npos);
 }
 
+TEST(OdometryOptions, KeysAreReadWrittenAndBounded) {
+  ImageSlamOptions o;
+  apply_image_slam_config(YAML::Load("slam: {robot: odometry}\nodometry: {sigma_p: 0.02, k_theta: 0.1}"), "test.yaml",
+                          o);
+  EXPECT_EQ(o.robot, "odometry");
+  EXPECT_EQ(o.odometry.sigma_p, 0.02);
+  EXPECT_EQ(o.odometry.k_theta, 0.1);
+  ImageSlamOptions back;
+  apply_image_slam_config(to_yaml(o), "dump", back);
+  EXPECT_EQ(back.odometry.sigma_p, 0.02);
+  EXPECT_EQ(back.odometry.k_theta, 0.1);
+  EXPECT_EQ(error_of([&] { apply_image_slam_config(YAML::Load("odometry: {k_p: 11}"), "test.yaml", o); }),
+            "test.yaml: odometry/k_p = 11 must be in [0, 10] m/sqrt(m)");
+  EXPECT_NE(error_of([&] { apply_image_slam_config(YAML::Load("odometry: {k: 1}"), "test.yaml", o); }).find("k"),
+            std::string::npos);
+}
+
 TEST(ImuOptionsBounds, PriorsAndSaturationsHaveUpperBounds) {
   InertialOptions o;
   EXPECT_EQ(error_of([&] { o.validate(); }), "(no error)");

@@ -5,7 +5,10 @@
 #include <iterator>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numbers>
+#include <type_traits>
+#include <variant>
 
 #include <unistd.h>
 
@@ -177,6 +180,57 @@ TEST(Simulation, InMemoryStreamIsTimeOrderedWithImuFirst) {
   EXPECT_EQ(sim->image_times().front(), from_seconds(1.0));
   const SynthImuSample& s0 = sim->imu_samples().front();
   EXPECT_NEAR((s0.accel - s0.accel_bias).norm(), 9.81, 0.1);
+}
+
+// Odometry (robots) and the absolute fixes (GPS, mocap) together: one time-ordered stream where, at equal
+// timestamps, IMU samples come first, then odometry readings, images, GPS fixes and mocap poses; nothing is lost.
+TEST(Simulation, InMemoryStreamOrdersOdometryAndAbsoluteFixes) {
+  SimConfig c = SimConfig::preset("handheld");
+  c.duration_s = 0.5;
+  c.world.texel_size = 0.01;
+  c.render.supersampling = 1;
+  c.odometry.enabled = true;
+  c.gps.enabled = true;
+  c.mocap.enabled = true;
+  const auto sim = Simulation::create(c);
+  ASSERT_FALSE(sim->odometry().empty());
+  ASSERT_FALSE(sim->gps_fixes().empty());
+  ASSERT_FALSE(sim->mocap_fixes().empty());
+  auto rank = [](const io::Measurement& m) {
+    return std::visit(
+        [](const auto& x) {
+          using T = std::decay_t<decltype(x)>;
+          if constexpr (std::is_same_v<T, io::ImuSample>) return 0;
+          else if constexpr (std::is_same_v<T, io::OdometrySample>) return 1;
+          else if constexpr (std::is_same_v<T, io::ImageFrame>) return 2;
+          else if constexpr (std::is_same_v<T, io::PositionSample>) return 3;
+          else return 4;
+        },
+        m);
+  };
+  std::unique_ptr<io::Source> src = sim->make_source();
+  TimeNs last = std::numeric_limits<TimeNs>::min();
+  int last_rank = -1;
+  std::size_t counts[5] = {};
+  bool some_tie = false;
+  while (auto m = src->next()) {
+    const TimeNs t = io::time_of(*m);
+    const int r = rank(*m);
+    ASSERT_GE(t, last);
+    if (t == last) {
+      EXPECT_GE(r, last_rank) << "at t = " << t;
+      some_tie = some_tie || r != last_rank;
+    }
+    ++counts[r];
+    last = t;
+    last_rank = r;
+  }
+  EXPECT_TRUE(some_tie);
+  EXPECT_EQ(counts[0], sim->imu_samples().size());
+  EXPECT_EQ(counts[1], sim->odometry().size());
+  EXPECT_EQ(counts[2], sim->image_times().size());
+  EXPECT_EQ(counts[3], sim->gps_fixes().size());
+  EXPECT_EQ(counts[4], sim->mocap_fixes().size());
 }
 
 TEST(Simulation, PresetFilesMatchTheBuiltInPresets) {

@@ -14,6 +14,7 @@
 #include "rtslam/slam/landmark_init.hpp"
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/observation.hpp"
+#include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/world_frame.hpp"
 
 namespace rtslam::slam {
@@ -210,6 +211,43 @@ TEST(WorldFrame, TheTrackedBasisIsThatOfTheMovedEstimates) {
     ASSERT_EQ(o.H.cols(), N.rows());
     EXPECT_LT((MatrixXd(o.H) * N).norm(), 1e-9 * MatrixXd(o.H).norm()) << to_string(l->type());
   }
+}
+
+// The odometry robot [p q] (no vectors in W): its pose moves like the others', J = diag(R, I), and a landmark seen
+// from it stays where it was in its frame.
+TEST(WorldFrame, MovesAnOdometryRobot) {
+  World world;
+  Map& map = world.add_map(filter::StateOptions{});
+  auto r = std::make_unique<OdometryRobot>(models::OdometryParams{});
+  Sensor& cam = r->add_sensor(std::make_unique<PinholeSensor>("cam", camera(), math::Pose{}));
+  VectorXd x(7);
+  x << 0.4, -1.2, 1.1,
+      math::quat_to_wxyz(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Vector3d(1, -2, 3).normalized())));
+  MatrixXd P = 1e-3 * MatrixXd::Identity(6, 6);
+  P(0, 4) = P(4, 0) = 2e-4;
+  Robot& robot = map.add_robot(std::move(r), x, P, 0);
+  Landmark* l = init_ahp_landmark(map, cam, {300, 200}, 1.0, models::AhpPrior{}, 0);
+  ASSERT_NE(l, nullptr);
+  filter::State& s = map.state();
+  auto in_robot = [&] {
+    const auto xr = s.mean(robot.block());
+    const Matrix3d R_WR = math::quat_from_wxyz(xr.segment<4>(3)).toRotationMatrix();
+    return Vector3d(R_WR.transpose() * (models::ahp_to_euclidean(s.mean(l->block()).head<7>()) - xr.head<3>()));
+  };
+  const Vector3d l_R0 = in_robot();
+  const MatrixXd P0 = s.cov(robot.block());
+  const WorldChange c = known_change();
+  const Matrix3d R = c.T_GW.q.toRotationMatrix();
+  ASSERT_EQ(change_world_frame(map, c), "");
+  const auto xr = s.mean(robot.block());
+  EXPECT_LT((xr.head<3>() - (R * x.head<3>() + c.T_GW.p)).norm(), 1e-12);
+  EXPECT_LT(math::log_so3(math::quat_from_wxyz(xr.segment<4>(3)).conjugate() *
+                          (c.T_GW.q * math::quat_from_wxyz(x.segment<4>(3))))
+                .norm(), 1e-12);
+  EXPECT_LT((in_robot() - l_R0).norm(), 1e-10);
+  MatrixXd J = MatrixXd::Identity(6, 6);
+  J.topLeftCorner<3, 3>() = R;
+  EXPECT_LT((MatrixXd(s.cov(robot.block())) - J * P0 * J.transpose()).norm(), 1e-12);
 }
 
 }  // namespace

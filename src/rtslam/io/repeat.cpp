@@ -1,5 +1,7 @@
 #include "rtslam/io/repeat.hpp"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
@@ -46,6 +48,13 @@ std::optional<Measurement> RepeatSource::next() {
       }
       const TimeNs shifted = t + shift_;
       std::visit([shifted](auto& x) { x.t = shifted; }, *m);
+      if (auto* o = std::get_if<OdometrySample>(&*m)) {
+        // An increment's start moves with it; at a repetition's seam it starts where the previous reading ended
+        // (increments never overlap).
+        o->t_from += shifted - t;
+        if (last_odometry_t_) o->t_from = std::max(o->t_from, *last_odometry_t_);
+        last_odometry_t_ = shifted;
+      }
       last_out_t_ = shifted;
       return m;
     }

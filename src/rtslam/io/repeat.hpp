@@ -35,6 +35,7 @@ class RepeatSource final : public Source {
   TimeNs shift_ = 0;               // added to the current repetition's times
   std::optional<TimeNs> first_t_;  // the current repetition's first (unshifted) time
   std::optional<TimeNs> last_out_t_;  // the last (shifted) time handed out
+  std::optional<TimeNs> last_odometry_t_;  // the last (shifted) odometry reading's end handed out
   std::optional<TimeNs> prev_t_;      // the previous unshifted time of the first repetition
   TimeNs period_ = 0;                 // the smallest positive interval of the first repetition
   std::optional<std::size_t> images_per_repetition_;

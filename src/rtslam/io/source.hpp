@@ -1,6 +1,7 @@
 #pragma once
 // The measurement stream: every input (dataset reader, video, simulator) becomes one time-ordered sequence of
-// measurements. At equal timestamps IMU samples come before images, and images by camera index.
+// measurements. At equal timestamps IMU samples come before odometry readings, those before images, and images by
+// camera index; the simulator's absolute fixes (PositionSample, PoseSample) come after the images of their time.
 //
 // Bad input (timestamps that go backwards, duplicates, IMU dropouts, NaNs, malformed lines, missing or undecodable
 // images) is reported with the file and line or timestamp. The policy chooses between stopping with an error
@@ -41,6 +42,16 @@ struct ImageFrame {
   std::string path;   // file it came from ("video.mp4#123" for video frames)
 };
 
+/// One wheel-odometry reading: the robot's pose increment from the previous reading (t_from) to this one (t), in the
+/// robot frame at t_from: dp the displacement (m), dtheta the rotation vector (rad). From the simulator
+/// (sim/odometry.hpp); the dataset readers give none.
+struct OdometrySample {
+  TimeNs t = 0;
+  TimeNs t_from = 0;
+  Eigen::Vector3d dp = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dtheta = Eigen::Vector3d::Zero();
+};
+
 /// One absolute position fix (GPS-like): the antenna position in the sensor's world frame (m).
 struct PositionSample {
   TimeNs t = 0;
@@ -54,7 +65,7 @@ struct PoseSample {
   Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
 };
 
-using Measurement = std::variant<ImuSample, ImageFrame, PositionSample, PoseSample>;
+using Measurement = std::variant<ImuSample, ImageFrame, OdometrySample, PositionSample, PoseSample>;
 
 /// The range of an IMU's readings, per axis. A reading beyond it is saturated or corrupt: its true value is unknown,
 /// so it must never reach the integrator as if it were measured. Without a calibrated full scale the range is the

@@ -6,6 +6,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/pipeline/starters.hpp"
 #include "rtslam/slam/absolute_sensor.hpp"
+#include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/time_offset.hpp"
 #include "rtslam/strategies/absolute.hpp"
 #include "rtslam/strategies/active_search.hpp"
@@ -65,6 +66,27 @@ Registry Registry::builtin() {
         return std::make_unique<InertialStarter>(
             c.options.imu, *cam.sensor, cam.intrinsics, cam.T_RS,
             dynamic_cast<strategies::ActiveSearchDataManager*>(cam.data_manager));
+      });
+  r.add_robot(
+      "odometry",
+      [](const BuildContext& c) -> std::unique_ptr<slam::Robot> {
+        if (!c.options.known_landmarks.empty()) {
+          throw ConfigError("slam/known_landmarks is not supported with slam/robot = odometry yet");
+        }
+        return std::make_unique<slam::OdometryRobot>(c.options.odometry);
+      },
+      [](const BuildContext& c, const BuiltSystem&) -> std::unique_ptr<slam::RobotStarter> {
+        // At the first image, at the given pose [p q] (a known start) or the origin with zero covariance (the gauge).
+        Eigen::VectorXd x0(7);
+        x0 << 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0;
+        if (c.initial_state) x0 = *c.initial_state;
+        const Eigen::MatrixXd P0 = c.initial_cov.size() > 0 ? c.initial_cov : Eigen::MatrixXd::Zero(6, 6);
+        if (x0.size() != 7 || P0.rows() != 6 || P0.cols() != 6) {
+          throw ConfigError(fmt::format("the odometry robot of '{}' starts from a pose [p q] (7 entries, covariance "
+                                        "6x6), not {} entries",
+                                        c.dataset, x0.size()));
+        }
+        return std::make_unique<PoseStarter>(c.options.initial_velocity_std, std::nullopt, x0, P0);
       });
   r.add_data_manager("active_search", [](const BuildContext& c, const slam::MapManager& mm,
                                          const models::CameraIntrinsics& in,
@@ -138,6 +160,30 @@ BuiltSystem Registry::build(const BuildContext& c) const {
   sys.input_window = static_cast<std::size_t>(std::max(64.0, window_s * rate * 1.5));
   b.system = std::make_unique<slam::System>(*b.world, *b.map, std::move(mm), sys);
 
+  add_robot_to(b, c);
+  if (o.zero_velocity.enabled) b.system->add_hook(std::make_unique<strategies::ZeroVelocityUpdater>(o.zero_velocity));
+  return b;
+}
+
+BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
+  const ImageSlamOptions& o = c.options;
+  const bool first = b.robots.empty();
+  if (!first) {
+    o.validate();
+    check(o);
+    for (const int k : o.camera_indices()) {
+      if (k >= static_cast<int>(c.rig.cameras.size())) {
+        throw ConfigError(fmt::format("slam/camera{} = {}: dataset '{}' has {} camera(s)",
+                                      o.cameras.empty() ? "" : "s", k, c.dataset, c.rig.cameras.size()));
+      }
+    }
+  }
+  // Each robot's data managers draw from their own streams (the first robot keeps the single-robot seeds).
+  const std::uint64_t robot_seed = dm_seed(o) + 15485863 * static_cast<std::uint64_t>(b.robots.size());
+  BuiltSystem view;  // what a starter of a robot after the first sees: that robot and its cameras
+  BuiltSystem& target = first ? b : view;
+  target.map = b.map;
+  target.map_manager = b.map_manager;
   const RobotEntry& entry = robots_.at(o.robot);
   std::unique_ptr<slam::Robot> robot = entry.robot(c);
   // One sensor and data manager per camera; they share the map's landmarks (each landmark has an observation for
@@ -160,34 +206,35 @@ BuiltSystem Registry::build(const BuildContext& c) const {
     slam::apply_time_offset(*cam.sensor, o.time_offset);
     // Each camera's data manager draws from its own stream (the first keeps the single-camera seed).
     std::unique_ptr<slam::DataManager> dm =
-        data_managers_.at(o.data_manager)(c, *b.map_manager, cam.intrinsics, dm_seed(o) + 104729 * k);
+        data_managers_.at(o.data_manager)(c, *b.map_manager, cam.intrinsics, robot_seed + 104729 * k);
     cam.data_manager = dm.get();
     if (o.consistency == "fej") {
       if (auto* as = dynamic_cast<strategies::ActiveSearchDataManager*>(dm.get())) as->set_first_estimate_jacobians(true);
     }
     cam.sensor->set_data_manager(std::move(dm));
-    b.cameras.push_back(cam);
+    target.cameras.push_back(cam);
   }
   // Absolute sensors: their own data manager each (strategies/absolute.hpp).
   const bool gravity_aligned = o.robot == "inertial";
   if (o.position_sensor.enabled) {
-    b.position_sensor = &robot->add_sensor(std::make_unique<slam::AbsoluteSensor>(
+    target.position_sensor = &robot->add_sensor(std::make_unique<slam::AbsoluteSensor>(
         "position", slam::AbsoluteSensor::Kind::Position, o.position_sensor.T_RS()));
-    b.position_sensor->set_data_manager(
+    target.position_sensor->set_data_manager(
         std::make_unique<strategies::AbsoluteDataManager>(o.position_sensor, gravity_aligned));
   }
   if (o.pose_sensor.enabled) {
-    b.pose_sensor = &robot->add_sensor(
+    target.pose_sensor = &robot->add_sensor(
         std::make_unique<slam::AbsoluteSensor>("pose", slam::AbsoluteSensor::Kind::Pose, o.pose_sensor.T_RS()));
-    b.pose_sensor->set_data_manager(std::make_unique<strategies::AbsoluteDataManager>(o.pose_sensor, gravity_aligned));
+    target.pose_sensor->set_data_manager(std::make_unique<strategies::AbsoluteDataManager>(o.pose_sensor, gravity_aligned));
   }
   if (o.consistency == "fej") robot->set_first_estimate_jacobians(true);
-  b.robot = robot.get();
-  std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, b);
-  b.starter = starter.get();
-  b.input_id = b.system->add_robot(std::move(robot), std::move(starter));
-  if (o.zero_velocity.enabled) b.system->add_hook(std::make_unique<strategies::ZeroVelocityUpdater>(o.zero_velocity));
-  return b;
+  target.robot = robot.get();
+  std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, target);
+  target.starter = starter.get();
+  target.input_id = b.system->add_robot(std::move(robot), std::move(starter));
+  b.robots.push_back(BuiltRobot{target.robot, target.starter, target.input_id, target.cameras, target.position_sensor,
+                              target.pose_sensor});
+  return b.robots.back();
 }
 
 BuiltSystem build_system(const BuildContext& context) { return Registry::builtin().build(context); }

@@ -1,7 +1,8 @@
 #pragma once
 // The builder: turns a configuration (ImageSlamOptions) and a rig calibration into a slam::System, with the types
 // named in the configuration looked up in a Registry. The built-in entries:
-//   robots (slam/robot):               constant_velocity (PoseStarter), inertial (InertialStarter)
+//   robots (slam/robot):               constant_velocity (PoseStarter), inertial (InertialStarter),
+//                                      odometry (PoseStarter at a pose [p q])
 //   data managers (slam/data_manager): active_search (images), known_association (point measurements: the demo)
 //   map managers (slam/map_manager):   policy
 // A user's own robot, data manager or map manager is one Registry::add_* call away (docs/architecture.md); the
@@ -21,7 +22,8 @@
 namespace rtslam::pipeline {
 
 /// What the parts are made from. `initial_state`: a constant-velocity start other than the origin (the points demo
-/// starts at its simulated pose; 13 entries, `initial_cov` 12×12 or empty for the default prior).
+/// starts at its simulated pose; 13 entries, `initial_cov` 12×12 or empty for the default prior), or the odometry
+/// robot's start pose [p q] (7 entries, `initial_cov` 6×6 or empty for zero: a known start).
 struct BuildContext {
   const ImageSlamOptions& options;
   const io::Rig& rig;
@@ -39,6 +41,17 @@ struct BuiltCamera {
   math::Pose T_RS;
 };
 
+/// One robot the builder added to a System.
+struct BuiltRobot {
+  slam::Robot* robot = nullptr;
+  slam::RobotStarter* starter = nullptr;
+  int input_id = -1;  // the robot's proprioceptive stream (slam::ImuData or slam::OdometryData sensor_id)
+  std::vector<BuiltCamera> cameras;
+  // Its absolute sensors (position_sensor / pose_sensor enabled), else null.
+  slam::Sensor* position_sensor = nullptr;
+  slam::Sensor* pose_sensor = nullptr;
+};
+
 struct BuiltSystem {
   std::unique_ptr<slam::World> world;
   slam::Map* map = nullptr;
@@ -51,6 +64,7 @@ struct BuiltSystem {
   // Absolute sensors (position_sensor / pose_sensor enabled), else null.
   slam::Sensor* position_sensor = nullptr;
   slam::Sensor* pose_sensor = nullptr;
+  std::vector<BuiltRobot> robots;  // every robot, in the order added (the first: the fields above)
 };
 
 class Registry {
@@ -73,6 +87,12 @@ class Registry {
   /// ConfigError naming the key and the registered names when a type is unknown.
   void check(const ImageSlamOptions& options) const;
   BuiltSystem build(const BuildContext& context) const;
+  /// Adds another robot to a built System, in its map: the robot type of context.options (slam/robot, its own
+  /// keys), its cameras from context.rig, its start from context.initial_state. Several robots in one world: the
+  /// map's landmarks are shared (a landmark one robot's camera initialized is searched and corrected in every
+  /// other camera), and every robot is predicted to each datum's time. For a common world frame, give each robot
+  /// its start pose in it (a known start: initial_state with zero covariance for the first, the gauge).
+  BuiltRobot add_robot_to(BuiltSystem& built, const BuildContext& context) const;
 
  private:
   struct RobotEntry {

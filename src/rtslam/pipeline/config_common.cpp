@@ -51,6 +51,23 @@ YAML::Node motion_to_yaml(const models::ConstantVelocityParams& motion) {
   return n;
 }
 
+void read_odometry(YamlMap m, models::OdometryParams& odometry) {
+  m.get("sigma_p", odometry.sigma_p);
+  m.get("sigma_theta", odometry.sigma_theta);
+  m.get("k_p", odometry.k_p);
+  m.get("k_theta", odometry.k_theta);
+  m.finish();
+}
+
+YAML::Node odometry_to_yaml(const models::OdometryParams& odometry) {
+  YAML::Node n;
+  n["sigma_p"] = odometry.sigma_p;
+  n["sigma_theta"] = odometry.sigma_theta;
+  n["k_p"] = odometry.k_p;
+  n["k_theta"] = odometry.k_theta;
+  return n;
+}
+
 void read_map_policy(YamlMap m, strategies::MapPolicyOptions& mp) {
   std::string policy = policy_name(mp.policy);
   m.get("policy", policy);

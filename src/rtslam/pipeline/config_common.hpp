@@ -6,6 +6,7 @@
 
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/models/robots/constant_velocity.hpp"
+#include "rtslam/models/robots/odometry.hpp"
 #include "rtslam/strategies/map_policies.hpp"
 
 namespace rtslam::pipeline {
@@ -20,6 +21,10 @@ void validate_slam_bounds(const ImageSlamOptions& o);
 /// motion: {sigma_v, sigma_w}
 void read_motion(YamlMap section, models::ConstantVelocityParams& motion);
 YAML::Node motion_to_yaml(const models::ConstantVelocityParams& motion);
+
+/// odometry: {sigma_p, sigma_theta, k_p, k_theta} (odometry robot; bounds in models::OdometryParams::validate)
+void read_odometry(YamlMap section, models::OdometryParams& odometry);
+YAML::Node odometry_to_yaml(const models::OdometryParams& odometry);
 
 /// map_manager: {policy: global|visual_odometry, map_size, reparam_threshold, min_searches_to_judge,
 ///               min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}

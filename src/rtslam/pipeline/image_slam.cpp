@@ -19,6 +19,7 @@
 #include "rtslam/pipeline/starters.hpp"
 #include "rtslam/pipeline/vi_init.hpp"
 #include "rtslam/slam/health.hpp"
+#include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/system.hpp"
 #include "rtslam/viz/overlay.hpp"
 #include "rtslam/viz/report.hpp"
@@ -63,6 +64,7 @@ void ImageSlamOptions::validate() const {
                                   known_landmarks_convention));
   }
   motion.validate();
+  odometry.validate();
   search.validate();
   map.validate();
   health.validate();
@@ -125,6 +127,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     s.finish();
   }
   read_motion(top.child("motion"), o.motion);
+  read_odometry(top.child("odometry"), o.odometry);
   read_inertial(top.child("imu"), o.imu);
   if (top.has("search")) {
     YamlMap a = top.child("search");
@@ -180,6 +183,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["slam"]["overlay_frame"] = o.overlay_frame;
   root["slam"]["overlay_path"] = o.overlay_path;
   root["motion"] = motion_to_yaml(o.motion);
+  root["odometry"] = odometry_to_yaml(o.odometry);
   root["imu"] = inertial_to_yaml(o.imu);
   root["search"] = o.search.to_yaml();
   root["map_manager"] = map_policy_to_yaml(o.map);
@@ -213,6 +217,8 @@ io::Dataset make_sim_dataset(const ImageSlamOptions& o) {
     if (c > 1) throw ConfigError(fmt::format("slam/cameras: the simulator has cameras 0 and 1, not {}", c));
     if (c == 1) sc.stereo = true;
   }
+  // The odometry robot is driven by the simulator's odometry (its own noise keys, or the defaults).
+  if (o.robot == "odometry") sc.odometry.enabled = true;
   sc.validate();
   return sim::Simulation::create(sc)->make_dataset();
 }
@@ -321,7 +327,7 @@ struct ImageSlam::Impl final : slam::Observer {
       est.v_WR = x.segment<3>(I::kV);
       est.accel_bias = x.segment<3>(I::kAb);
       est.gyro_bias = x.segment<3>(I::kWb);
-    } else {
+    } else if (x.size() == models::ConstantVelocityIndex::kAmbientSize) {
       est.v_WR = x.segment<3>(models::ConstantVelocityIndex::kV);
     }
     est.cov = s.map.state().cov(s.robot.block()).topLeftCorner<6, 6>();
@@ -387,6 +393,18 @@ struct ImageSlam::Impl final : slam::Observer {
       d->t = imu->t;
       d->sensor_id = built.input_id;
       d->m = models::ImuMeasurement{imu->accel, imu->gyro};
+      system.feed(std::move(d));
+      return true;
+    }
+    if (const auto* odo = std::get_if<io::OdometrySample>(&*m)) {
+      flush_held();
+      if (dynamic_cast<const slam::OdometryRobot*>(built.robot) == nullptr) return true;
+      auto d = system.spare<slam::OdometryData>();
+      d->t = odo->t;
+      d->t_from = odo->t_from;
+      d->sensor_id = built.input_id;
+      d->dp = odo->dp;
+      d->dtheta = odo->dtheta;
       system.feed(std::move(d));
       return true;
     }

@@ -17,6 +17,7 @@
 //                 rate_hz,
 //                 known_landmarks, known_landmarks_convention, overlay_frame, overlay_path}
 //   motion:      {sigma_v, sigma_w}                (constant-velocity robot)
+//   odometry:    {sigma_p, sigma_theta, k_p, k_theta} (odometry robot: wheel-odometry increments drive it)
 //   imu:         see inertial_init.hpp             (inertial robot)
 //   search:      see strategies::ActiveSearchOptions::from_yaml
 //   map_manager: {policy: global|visual_odometry, map_size, reparam_threshold, min_searches_to_judge,
@@ -41,6 +42,7 @@
 #include "rtslam/core/trajectory.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/models/robots/constant_velocity.hpp"
+#include "rtslam/models/robots/odometry.hpp"
 #include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/slam/health.hpp"
@@ -56,7 +58,8 @@ namespace rtslam::pipeline {
 
 struct ImageSlamOptions {
   std::uint64_t seed = 1;
-  std::string robot = "constant_velocity";  // a registered robot type (builder.hpp): constant_velocity | inertial
+  std::string robot = "constant_velocity";  // a registered robot type (builder.hpp): constant_velocity | inertial |
+                                            // odometry
   std::string data_manager = "active_search";  // a registered data manager type (builder.hpp)
   std::string map_manager = "policy";          // a registered map manager type (builder.hpp)
   // none: plain EKF; oc: observability-constrained EKF (filter/state.hpp): the filter tracks the unobservable
@@ -82,6 +85,7 @@ struct ImageSlamOptions {
   double sim_duration_s = 0.0;           // simulated seconds (0: the preset's)
   std::optional<double> sim_camera_time_offset_ms;  // the simulated images' camera–IMU offset (default: the preset's)
   models::ConstantVelocityParams motion;
+  models::OdometryParams odometry;  // odometry robot (slam/robot: odometry): the increments' noise
   InertialOptions imu;
   strategies::ActiveSearchOptions search;
   strategies::KnownAssociationOptions association;  // the known_association data manager's (point data; not in YAML)

@@ -28,7 +28,11 @@ PoseStarter::PoseStarter(double initial_velocity_std, std::optional<KnownLandmar
     x0_ = known_->robot_mean;
     P0_ = known_->robot_cov;
   } else if (initial) {
-    RTSLAM_CHECK(initial->size() == I::kAmbientSize, "PoseStarter: the initial state has 13 entries");
+    // Another robot than the constant-velocity one ([p q ...]: the odometry robot's [p q]) gives its covariance.
+    RTSLAM_CHECK(initial_cov.size() > 0 ? initial->size() >= 7 && initial_cov.rows() == initial->size() - 1 &&
+                                              initial_cov.cols() == initial_cov.rows()
+                                        : initial->size() == I::kAmbientSize,
+                 "PoseStarter: the initial state has 13 entries, or its covariance one row fewer than its entries");
     x0_ = *initial;
     if (initial_cov.size() > 0) P0_ = initial_cov;
   }

@@ -46,8 +46,8 @@ struct MatImage final : strategies::RawImage {
 
 class PoseStarter final : public slam::RobotStarter {
  public:
-  /// `initial`: the state to start at (13: [p q v ω]) with `initial_cov` (12×12); else the origin with the
-  /// velocity prior. `known`: a known-landmark set whose initial state is the start and whose points are added.
+  /// `initial`: the state to start at (13: [p q v ω]) with `initial_cov` (12×12), or of another robot [p q ...]
+  /// (the odometry robot's [p q]) with its `initial_cov` (required); else the origin with the velocity prior. `known`: a known-landmark set whose initial state is the start and whose points are added.
   PoseStarter(double initial_velocity_std, std::optional<KnownLandmarkSet> known,
               std::optional<Eigen::VectorXd> initial = std::nullopt, Eigen::MatrixXd initial_cov = {});
   std::optional<slam::RobotStart> offer(const slam::RawData& datum, const RingBuffer<slam::ImuData>& inputs) override;

@@ -174,6 +174,11 @@ SimConfig SimConfig::from_yaml(YamlMap& m, SimConfig c, const std::string& dir) 
     c.imu.read(im);
     im.finish();
   }
+  if (m.has("odometry")) {
+    YamlMap om = m.child("odometry");
+    c.odometry.read(om);
+    om.finish();
+  }
   m.get("threads", c.render.threads);
   for (const auto& [key, pose] : {std::pair<const char*, bool>{"gps", false}, {"mocap", true}}) {
     if (!m.has(key)) continue;
@@ -220,6 +225,9 @@ void SimConfig::validate() const {
     throw ConfigError(fmt::format("{}: a recorded:DIR trajectory replays the recorded IMU: imu.enabled must be true", where));
   world.validate(where + " world");
   imu.validate(where + " imu");
+  odometry.validate(where + " odometry");
+  if (recorded() && odometry.enabled)
+    throw ConfigError(fmt::format("{}: odometry is synthesized for synthetic and follow:FILE trajectories only", where));
   require_bound(render.supersampling >= 1 && render.supersampling <= 8, where, "camera.supersampling",
                 render.supersampling, "in [1, 8]");
   require_bound(render.noise_std >= 0.0, where, "camera.noise_std", render.noise_std, ">= 0");
@@ -386,6 +394,10 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
       imu_.push_back(synth.sample(t));
     }
   }
+  if (config_.odometry.enabled) {
+    // Stream 7: 5 and 6 are the GPS and mocap fixes'.
+    odometry_ = synthesize_odometry(*trajectory_, t0, t1, config_.odometry, Rng(mix_seed(config_.seed, 7)));
+  }
   auto gt_pose = [this](TimeNs t) {
     const KinematicState s = trajectory_->at(t);
     StampedPose p;
@@ -437,23 +449,32 @@ class SimSource final : public io::Source {
   std::optional<io::Measurement> next() override {
     const auto& imu = sim_->imu_samples();
     const auto& img = sim_->image_times();
-    const bool has_imu = imu_pos_ < imu.size(), has_img = img_pos_ < img.size();
-    // Absolute fixes come after the IMU samples and images of their time (none while a stereo pair is half out).
+    const auto& odo = sim_->odometry();
+    const bool has_imu = imu_pos_ < imu.size(), has_img = img_pos_ < img.size(), has_odo = odo_pos_ < odo.size();
+    // Absolute fixes come after the IMU samples, odometry readings and images of their time (none while a stereo pair
+    // is half out).
     const auto& gps = sim_->gps_fixes();
     const auto& mocap = sim_->mocap_fixes();
     if (cam_ == 0) {
-      const TimeNs t_other = std::min(has_imu ? imu[imu_pos_].t : kNoTime, has_img ? sim_->image_stamp(img_pos_) : kNoTime);
+      const TimeNs t_other = std::min({has_imu ? imu[imu_pos_].t : kNoTime, has_odo ? odo[odo_pos_].t : kNoTime,
+                                       has_img ? sim_->image_stamp(img_pos_) : kNoTime});
       if (gps_pos_ < gps.size() && gps[gps_pos_].t < t_other &&
           (mocap_pos_ >= mocap.size() || gps[gps_pos_].t <= mocap[mocap_pos_].t)) {
         return gps[gps_pos_++];
       }
       if (mocap_pos_ < mocap.size() && mocap[mocap_pos_].t < t_other) return mocap[mocap_pos_++];
     }
-    if (!has_imu && !has_img) return std::nullopt;
-    if (has_imu && (!has_img || imu[imu_pos_].t <= sim_->image_stamp(img_pos_))) {
+    if (!has_imu && !has_img && !has_odo) return std::nullopt;
+    const bool odo_before_img = has_odo && (!has_img || odo[odo_pos_].t <= sim_->image_stamp(img_pos_));
+    if (has_imu && (!has_img || imu[imu_pos_].t <= sim_->image_stamp(img_pos_)) &&
+        (!has_odo || imu[imu_pos_].t <= odo[odo_pos_].t)) {
       const SynthImuSample& s = imu[imu_pos_++];
       ++stats_.imu_samples;
       return io::ImuSample{s.t, s.gyro, s.accel};
+    }
+    if (odo_before_img) {
+      const SynthOdometry& o = odo[odo_pos_++];
+      return io::OdometrySample{o.t, o.t_from, o.dp, o.dtheta};
     }
     io::ImageFrame f;
     f.t = sim_->image_stamp(img_pos_);
@@ -478,6 +499,7 @@ class SimSource final : public io::Source {
     const auto& img = sim_->image_times();
     while (imu_pos_ < imu.size() && imu[imu_pos_].t < t) ++imu_pos_;
     while (img_pos_ < img.size() && sim_->image_stamp(img_pos_) < t) ++img_pos_;
+    while (odo_pos_ < sim_->odometry().size() && sim_->odometry()[odo_pos_].t < t) ++odo_pos_;
     while (gps_pos_ < sim_->gps_fixes().size() && sim_->gps_fixes()[gps_pos_].t < t) ++gps_pos_;
     while (mocap_pos_ < sim_->mocap_fixes().size() && sim_->mocap_fixes()[mocap_pos_].t < t) ++mocap_pos_;
     cam_ = 0;
@@ -487,7 +509,7 @@ class SimSource final : public io::Source {
  private:
   std::shared_ptr<const Simulation> sim_;
   static constexpr TimeNs kNoTime = std::numeric_limits<TimeNs>::max();
-  std::size_t imu_pos_ = 0, img_pos_ = 0, gps_pos_ = 0, mocap_pos_ = 0;
+  std::size_t imu_pos_ = 0, img_pos_ = 0, odo_pos_ = 0, gps_pos_ = 0, mocap_pos_ = 0;
   int cam_ = 0;
   io::SourceStats stats_;
 };

@@ -35,6 +35,7 @@
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/sim/absolute.hpp"
 #include "rtslam/sim/imu.hpp"
+#include "rtslam/sim/odometry.hpp"
 #include "rtslam/sim/renderer.hpp"
 #include "rtslam/sim/trajectory.hpp"
 #include "rtslam/sim/world.hpp"
@@ -60,6 +61,7 @@ struct SimConfig {
   double camera_time_offset_s = 0.0;
   bool imu_enabled = true;
   ImuSynthOptions imu;
+  OdometrySynthOptions odometry;  // wheel odometry of the robot frame (odometry.hpp; off unless configured)
   // Absolute sensors measured from the ground truth (sim/absolute.hpp): a GPS-like position, a motion-capture pose.
   AbsoluteSimOptions gps;
   AbsoluteSimOptions mocap = [] {
@@ -109,6 +111,9 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   TimeNs image_stamp(std::size_t k) const { return image_times_[k] - time_offset_; }
   /// IMU samples: synthesized (with the true biases), or recorded (biases unknown: zero).
   const std::vector<SynthImuSample>& imu_samples() const { return imu_; }
+  /// Odometry readings (config().odometry.enabled; synthetic trajectories only), streamed by make_source (not
+  /// written by write_euroc).
+  const std::vector<SynthOdometry>& odometry() const { return odometry_; }
   /// Ground truth of R at every IMU sample (at every image without IMU; at the recorded states in recorded mode):
   /// p, q, v, gyro and accel biases.
   const Trajectory& ground_truth() const { return ground_truth_; }
@@ -120,8 +125,8 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   /// Renders image k of camera c (deterministic: its noise seed derives from (seed, k, c)).
   cv::Mat render_image(std::size_t k, int c = 0) const;
 
-  /// An in-memory stream (IMU first at equal timestamps, then images, GPS fixes, mocap poses); it keeps this
-  /// simulation alive.
+  /// An in-memory stream (IMU first at equal timestamps, then odometry, then images, GPS fixes, mocap poses); it keeps
+  /// this simulation alive.
   std::unique_ptr<io::Source> make_source() const;
   /// The stream, rig and ground truth as an io::Dataset (kind "sim"), for `rtslam run` with no dataset.
   io::Dataset make_dataset() const;
@@ -144,6 +149,7 @@ class Simulation : public std::enable_shared_from_this<Simulation> {
   std::vector<TimeNs> image_times_;
   TimeNs time_offset_ = 0;
   std::vector<SynthImuSample> imu_;
+  std::vector<SynthOdometry> odometry_;
   Trajectory ground_truth_;
   std::vector<io::PositionSample> gps_;
   std::vector<io::PoseSample> mocap_;

@@ -71,13 +71,20 @@ void System::feed(std::unique_ptr<RawData> datum) {
       throw DataError(fmt::format("input of robot '{}' at t = {} ns is not after the previous one (t = {} ns)",
                                   s.robot->name(), datum->t, *s.last_input_t));
     }
-    if (const auto* imu = dynamic_cast<const ImuData*>(datum.get())) {
+    const auto* imu = dynamic_cast<const ImuData*>(datum.get());
+    if (imu != nullptr) {
       if (s.recent.size() + 1 >= s.recent.capacity()) s.recent.pop_front();
       s.recent.push_back(*imu);
     }
     if (s.robot->in_map()) s.robot->add_input(*datum);
     s.last_input_t = datum->t;
-    recycle(std::move(datum));
+    if (imu == nullptr && !s.robot->in_map()) {
+      // Inputs of another type (odometry increments) are not in the window: the latest one is kept for the start.
+      if (s.latest_input) recycle(std::move(s.latest_input));
+      s.latest_input = std::move(datum);
+    } else {
+      recycle(std::move(datum));
+    }
     // At equal timestamps the input comes first: data up to its time are covered now.
     while (!pending_.empty() && covered(*pending_.front())) {
       std::unique_ptr<RawData> d = std::move(pending_.front());
@@ -131,6 +138,10 @@ void System::start(Slot& slot, const RobotStart& s, const Sensor& sensor) {
   if (first) {
     map_.add_robot(std::move(slot.waiting), s.x, s.P, s.t);  // (a time offset's block starts at 0 residual)
     for (std::size_t k = 0; k < slot.recent.size(); ++k) slot.robot->add_input(slot.recent[k]);
+    if (slot.latest_input) {
+      slot.robot->add_input(*slot.latest_input);
+      recycle(std::move(slot.latest_input));
+    }
   } else {
     // The start is at the time of the sensor's datum: in the robot's clock, shifted by the current time offset.
     const TimeNs t = std::max(s.t + sensor.time_shift(map_.state().mean_vector()), slot.robot->time());

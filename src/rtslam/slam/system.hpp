@@ -1,7 +1,8 @@
 #pragma once
 // The System owns the frame loop (paper, section 2: the generic loop over robots, sensors and their data managers).
-// It takes one time-ordered stream of sensor data (feed): proprioceptive inputs (IMU samples) go to their robot at
-// once; every other datum waits until the inputs of every robot that needs them cover its time, then, in time order,
+// It takes one time-ordered stream of sensor data (feed): proprioceptive inputs (IMU samples, odometry increments:
+// any RawData whose sensor_id is a robot's input id) go to their robot at once (before its first start: IMU samples
+// to the starters' window, replayed into the robot at the start, and of other types the latest one); every other datum waits until the inputs of every robot that needs them cover its time, then, in time order,
 // it is offered to its robot's RobotStarter while the robot has not started, or goes through the filter: every robot
 // of the map is predicted to the datum's time, the sensor's DataManager observes, corrects and initializes, the
 // MapManager keeps the map clean. After each datum the HealthMonitor judges the filter; on a verdict (with
@@ -151,6 +152,7 @@ class System {
     HealthMonitor monitor;
     RingBuffer<ImuData> recent;
     std::optional<TimeNs> last_input_t;
+    std::unique_ptr<RawData> latest_input;  // before the first start, the latest input that is not an ImuData
     bool restarting = false;
     Eigen::VectorXd last_good_x;
     RobotCounts counts;

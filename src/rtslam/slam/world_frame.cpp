@@ -4,6 +4,7 @@
 
 #include "rtslam/slam/landmark.hpp"
 #include "rtslam/slam/map.hpp"
+#include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/robot.hpp"
 
 namespace rtslam::slam {
@@ -36,7 +37,8 @@ std::string change_world_frame(Map& map, const WorldChange& change,
   const Vector3d& c = change.center_G;
   for (const auto& r : map.robots()) {
     if (dynamic_cast<const ConstantVelocityRobot*>(r.get()) == nullptr &&
-        dynamic_cast<const InertialRobot*>(r.get()) == nullptr) {
+        dynamic_cast<const InertialRobot*>(r.get()) == nullptr &&
+        dynamic_cast<const OdometryRobot*>(r.get()) == nullptr) {
       return "robot '" + r->name() + "' is of a type whose world-frame states are not known here";
     }
   }
@@ -50,7 +52,7 @@ std::string change_world_frame(Map& map, const WorldChange& change,
     b.Gamma = MatrixXd::Zero(n, 6);
     return b;
   };
-  // Robots: [p q v ...] with the model's own vectors in W.
+  // Robots: [p q v ...] with the model's own vectors in W (the odometry robot: [p q] alone; its increments are in R).
   for (const auto& r : map.robots()) {
     auto x = state.mean(r->block());
     BlockChange& b = add(r->block());
@@ -60,8 +62,9 @@ std::string change_world_frame(Map& map, const WorldChange& change,
     b.J.block<3, 3>(0, 0) = R;
     point_rows(x.head<3>(), c, b.Gamma.middleRows(0, 3));
     b.Gamma.block<3, 3>(3, 3) = q.toRotationMatrix().transpose();
-    // Vectors in W: velocity (both models) and gravity (inertial).
-    std::vector<std::pair<int, int>> vectors = {{7, 6}};  // (ambient, tangent) offsets
+    // Vectors in W: velocity (constant velocity and inertial) and gravity (inertial).
+    std::vector<std::pair<int, int>> vectors;  // (ambient, tangent) offsets
+    if (dynamic_cast<const OdometryRobot*>(r.get()) == nullptr) vectors.emplace_back(7, 6);
     if (dynamic_cast<const InertialRobot*>(r.get()) != nullptr) {
       using I = models::InertialIndex;
       vectors.emplace_back(I::kG, I::kDg);

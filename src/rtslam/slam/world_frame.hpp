@@ -7,6 +7,7 @@
 // The change is x_G = R_GW x_W + t_GW for points. Per block (tangent rows, right perturbation of attitudes):
 //   robot [p q v ...]  p' = R p + t, q' = q_GW q, v' = R v (constant velocity: ω in R unchanged; inertial: the
 //                      biases in R unchanged, gravity g' = R g)        J = diag(R, I, R, ...)
+//                      (odometry robot [p q]: p' = R p + t, q' = q_GW q  J = diag(R, I))
 //   AHP [p0 m ρ]       p0' = R p0 + t, m' = R m, ρ' = ρ                  J = diag(R, R, 1)
 //   Euclidean [x]      x' = R x + t                                      J = R
 //   any other block    (sensor extrinsics T_RS, in R) unchanged          J = I

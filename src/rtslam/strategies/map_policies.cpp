@@ -54,19 +54,30 @@ void PolicyMapManager::manage(slam::Map& map, const slam::Sensor& sensor, long f
   double min_index = std::numeric_limits<double>::infinity();
   int ahp = 0;
   for (slam::Landmark* l : scratch_) {
-    const slam::Observation* o = l->observation_of(sensor);
-    if (!o) continue;
-    const auto& c = o->counters;
-    bool remove = false;
-    if (c.searched >= opt_.min_searches_to_judge) {
-      if (c.matched < opt_.min_match_ratio * static_cast<double>(c.searched)) remove = true;
-      if (c.matched > 0 && c.updated < opt_.min_inlier_ratio * static_cast<double>(c.matched)) remove = true;
+    if (!l->observation_of(sensor)) continue;
+    // A landmark is the map's, not the calling sensor's: with several sensors (several cameras, several robots)
+    // each observes it with its own counters. The match/inlier judgement removes it only if some sensor judged it
+    // bad and none judged it good (one sensor failing to match it from its own viewpoint does not take it from the
+    // others), and its last update and last visibility are the latest over all sensors. With one sensor this is
+    // the sensor's own judgement.
+    bool judged_bad = false, judged_good = false;
+    long last_updated = -1, last_visible = -1, updated = 0;
+    for (const slam::Observation& ob : l->observations()) {
+      const auto& c = ob.counters;
+      last_updated = std::max(last_updated, c.last_updated_frame);
+      last_visible = std::max(last_visible, c.last_visible_frame);
+      updated += c.updated;
+      if (c.searched < opt_.min_searches_to_judge) continue;
+      const bool bad = c.matched < opt_.min_match_ratio * static_cast<double>(c.searched) ||
+                       (c.matched > 0 && c.updated < opt_.min_inlier_ratio * static_cast<double>(c.matched));
+      (bad ? judged_bad : judged_good) = true;
     }
-    const long last_update = c.last_updated_frame >= 0 ? c.last_updated_frame : l->frame_created;
+    bool remove = judged_bad && !judged_good;
+    const long last_update = last_updated >= 0 ? last_updated : l->frame_created;
     if (opt_.policy == MapPolicyOptions::Policy::VisualOdometry && frame - last_update > opt_.forget_after_frames) {
       remove = true;
     }
-    const long last_visible = c.last_visible_frame >= 0 ? c.last_visible_frame : l->frame_created;
+    if (last_visible < 0) last_visible = l->frame_created;
     if (opt_.forget_unseen_after_frames > 0 && frame - last_visible > opt_.forget_unseen_after_frames) remove = true;
     if (remove) {
       map.remove_landmark(*l);
@@ -77,7 +88,7 @@ void PolicyMapManager::manage(slam::Map& map, const slam::Sensor& sensor, long f
     ++ahp;
     const double index = slam::linearity_index(map, *l, p_WS);
     min_index = std::min(min_index, index);
-    if (c.updated > 0 && index < opt_.reparam_threshold) {
+    if (updated > 0 && index < opt_.reparam_threshold) {
       if (slam::reparametrize_to_euclidean(map, *l)) ++stats.reparametrized;
     }
   }
@@ -92,12 +103,15 @@ void PolicyMapManager::manage(slam::Map& map, const slam::Sensor& sensor, long f
   }
 }
 
-void PolicyMapManager::evict(slam::Map& map, const slam::Sensor& sensor, long frame, slam::FrameStats& stats) {
+void PolicyMapManager::evict(slam::Map& map, const slam::Sensor& /*sensor*/, long frame, slam::FrameStats& stats) {
   candidates_.clear();
   for (const auto& l : map.landmarks()) {
-    const slam::Observation* o = l->observation_of(sensor);
-    const long last_visible = o && o->counters.last_visible_frame >= 0 ? o->counters.last_visible_frame
-                                                                       : l->frame_created;
+    // The latest visibility over all sensors: a landmark another sensor sees now is not evicted.
+    long last_visible = -1;
+    for (const slam::Observation& ob : l->observations()) {
+      last_visible = std::max(last_visible, ob.counters.last_visible_frame);
+    }
+    if (last_visible < 0) last_visible = l->frame_created;
     if (frame - last_visible >= opt_.evict_min_unseen_frames) candidates_.emplace_back(last_visible, l.get());
   }
   // Longest unseen first; ties by id so that the order (and the run) is deterministic.

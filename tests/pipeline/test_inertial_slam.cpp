@@ -78,9 +78,11 @@ TEST(InertialSlam, EurocStandstillStartsAtRestStaysPutAndFindsGravity) {
 
 // Zero-velocity updates (zero_velocity, strategies/zero_velocity.hpp) on the same standstill: the IMU (a vibrating MAV
 // passes the rest thresholds) and the images (matched landmarks still) say "at rest" and v = 0 is fused: the updates
-// happen and the velocity estimate is closer to zero than without them. Not met yet (issue "One frame loop ... more
-// sensors" asks for a drift within 1 mm): the first updates move the position by ~3 mm through the start's p–v
-// correlation (drift 6.1 mm with, 2.7 mm without), so the option stays off in the presets; the figures are printed.
+// happen, the robot is held over the predictions that follow a frame at rest (Robot::set_at_rest), and the drift and
+// the velocity are lower than without them. Not met yet (issue "One frame loop ... more sensors" asks for a drift
+// within 1 mm): 1.65 mm with, 2.75 mm without (26 Nov); most of what is left comes from the 0.3 s after the rotors
+// spin up, where the gyro spread (0.10-0.113 rad/s) exceeds max_gyro_std and the IMU is integrated. The option stays
+// off in the presets; the figures are printed.
 TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
   if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
   const auto run = [](bool zupt) {
@@ -109,7 +111,8 @@ TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
   EXPECT_GE(zupts, 20);
   EXPECT_EQ(std::count_if(off.frames.begin(), off.frames.end(), [](const auto& f) { return f.zero_velocity; }), 0);
   EXPECT_LT(speed_on, speed_off);
-  EXPECT_LE(drift_on, 0.01);
+  EXPECT_LT(drift_on, drift_off);
+  EXPECT_LE(drift_on, 0.003);
 }
 
 // ... and never while the robot moves: the simulated hand-held motion (it starts moving at once) gets none after

@@ -99,6 +99,67 @@ TEST(InertialRobot, BufferedIntegrationEqualsThePerSampleChain) {
   EXPECT_LT((map.state().mean(robot.block()) - x_ref).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+// At rest (Robot::set_at_rest, the zero-velocity detector's verdict): the next prediction holds p, q, v and g and
+// adds only the biases' random walk, for that prediction only; samples of the interval that show motion make it
+// integrate as usual.
+TEST(InertialRobot, AtRestTheNextPredictionHoldsTheStateUnlessTheSamplesMove) {
+  World world;
+  filter::StateOptions so;
+  so.tangent_capacity = 40;
+  Map& map = world.add_map(so);
+  models::InertialParams params;
+  auto owned = std::make_unique<InertialRobot>(params);
+  InertialRobot& robot = *owned;
+  const TimeNs dt = 5'000'000;
+  models::Vector19d x0 = start_state();
+  x0.segment<3>(InertialIndex::kV).setZero();
+  map.add_robot(std::move(owned), x0, start_cov(), 0);
+  // Readings of a vibrating body at rest: −g in the body frame plus the biases, and a wobble well under the bounds.
+  const math::Pose T0{math::quat_from_wxyz(x0.segment<4>(InertialIndex::kQ)), x0.segment<3>(InertialIndex::kP)};
+  const auto at_rest = [&](int k) {
+    models::ImuMeasurement m;
+    m.accel = T0.q.conjugate() * Eigen::Vector3d(0.0, 0.0, 9.81) + x0.segment<3>(InertialIndex::kAb) +
+              Eigen::Vector3d(0.8, -0.5, 0.3) * std::sin(1.3 * k);
+    m.gyro = x0.segment<3>(InertialIndex::kWb) + Eigen::Vector3d(0.02, 0.01, -0.03) * std::cos(0.7 * k);
+    return m;
+  };
+  for (int k = 0; k <= 40; ++k) robot.add_imu(k * dt, at_rest(k));
+  const Eigen::MatrixXd P0 = map.state().cov(robot.block());
+
+  robot.set_at_rest(true);
+  ASSERT_TRUE(robot.predict_to(10 * dt));
+  EXPECT_EQ(robot.samples_held(), 10);
+  EXPECT_EQ(robot.samples_integrated(), 0);
+  EXPECT_EQ(map.state().mean(robot.block()), x0) << "held: the mean does not move";
+  Eigen::MatrixXd dP = map.state().cov(robot.block()) - P0;
+  const double ab = params.accelerometer_random_walk * params.accelerometer_random_walk * to_seconds(10 * dt);
+  const double wb = params.gyroscope_random_walk * params.gyroscope_random_walk * to_seconds(10 * dt);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(dP(InertialIndex::kDab + i, InertialIndex::kDab + i), ab, 1e-15);
+    EXPECT_NEAR(dP(InertialIndex::kDwb + i, InertialIndex::kDwb + i), wb, 1e-15);
+    dP(InertialIndex::kDab + i, InertialIndex::kDab + i) = 0.0;
+    dP(InertialIndex::kDwb + i, InertialIndex::kDwb + i) = 0.0;
+  }
+  EXPECT_LT(dP.cwiseAbs().maxCoeff(), 1e-15) << "only the biases' variances grow";
+
+  // The verdict is for one prediction: the next one integrates (and moves the mean, the readings being noisy).
+  ASSERT_TRUE(robot.predict_to(20 * dt));
+  EXPECT_EQ(robot.samples_held(), 10);
+  EXPECT_EQ(robot.samples_integrated(), 10);
+  EXPECT_NE(map.state().mean(robot.block()), x0);
+
+  // At rest said, but a sample of the interval turns at 1 rad/s: integrated, not held.
+  for (int k = 41; k <= 60; ++k) {
+    models::ImuMeasurement m = at_rest(k);
+    if (k == 45) m.gyro.z() += 1.0;
+    robot.add_imu(k * dt, m);
+  }
+  robot.set_at_rest(true);
+  ASSERT_TRUE(robot.predict_to(50 * dt));
+  EXPECT_EQ(robot.samples_held(), 10);
+  EXPECT_EQ(robot.samples_integrated(), 40);
+}
+
 TEST(InertialRobot, CoverageAndOrderErrorsAreReported) {
   World world;
   Map& map = world.add_map({});

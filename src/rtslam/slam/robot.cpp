@@ -226,6 +226,9 @@ bool InertialRobot::predict_to(TimeNs t) {
   filter::State& state = map_->state();
   x_ = state.mean(block_);
   const bool fej = fej_ && fej_valid_;
+  // At rest (the latest frame's verdict, for this prediction only) and the interval's samples agree: hold.
+  const bool hold = at_rest_ && interval_at_rest(t);
+  at_rest_ = false;
   Phi_.setIdentity();
   Qacc_.setZero();
   while (time_ < t) {
@@ -241,6 +244,21 @@ bool InertialRobot::predict_to(TimeNs t) {
     const models::ImuMeasurement m1 = lerp(before, next, t1);
     gyro_sum_ += (0.5 * static_cast<double>(t1 - time_)) * (m0.gyro + m1.gyro);
     gyro_span_ += t1 - time_;
+    if (hold) {
+      // The state stays; only the biases random-walk.
+      using I = models::InertialIndex;
+      const double dt = to_seconds(t1 - time_);
+      Qacc_.diagonal().segment<3>(I::kDab).array() +=
+          params_.accelerometer_random_walk * params_.accelerometer_random_walk * dt;
+      Qacc_.diagonal().segment<3>(I::kDwb).array() += params_.gyroscope_random_walk * params_.gyroscope_random_walk * dt;
+      ++held_;
+      time_ = t1;
+      if (t1 == next.t) {
+        prev_ = next;
+        pending_.pop_front();
+      }
+      continue;
+    }
     if (fej) {
       // The transition along the first-estimate states (fej_x_), the mean from the corrected one.
       models::inertial_predict(fej_x_, m0, m1, to_seconds(t1 - time_), params_, fej_next_, &F_, &Q_);
@@ -275,6 +293,22 @@ bool InertialRobot::predict_to(TimeNs t) {
     state.predict_constrained(block_, Phi_, Qacc_, N_, models::InertialIndex::kDth, 3);  // attitude columns
   } else {
     state.predict(block_, Phi_, Qacc_);
+  }
+  return true;
+}
+
+bool InertialRobot::interval_at_rest(TimeNs t) const {
+  using I = models::InertialIndex;
+  const int a = map_->state().block(block_).ambient_offset;
+  const Eigen::VectorXd& mean = map_->state().mean_vector();
+  const math::Pose T = pose(mean);
+  const Eigen::Vector3d ab = mean.segment<3>(a + I::kAb), wb = mean.segment<3>(a + I::kWb);
+  // At rest the accelerometer reads −g in the body frame (plus its bias) and the gyro its bias.
+  const Eigen::Vector3d f_rest = T.q.conjugate() * (-mean.segment<3>(a + I::kG)) + ab;
+  for (std::size_t k = 0; k < pending_.size(); ++k) {
+    const Sample& s = pending_[k];
+    if ((s.m.gyro - wb).norm() > kRestGyro || (s.m.accel - f_rest).norm() > kRestAccel) return false;
+    if (s.t >= t) break;
   }
   return true;
 }

@@ -62,6 +62,10 @@ class Robot {
   /// [δp (W) δθ (R, right perturbation)]: xi = [v_WR; ω_R], so that T_WR(t + s) ≈ T_WR ⊞ s·xi. The sensors' time
   /// offsets (Sensor::estimate_time_offset) move their pose along it. False for a robot that cannot tell it.
   virtual bool pose_rate(const Eigen::VectorXd& /*mean*/, Eigen::Matrix<double, 6, 1>& /*xi*/) const { return false; }
+  /// At rest until the next prediction (the zero-velocity detector's verdict of the latest frame): a robot that can
+  /// holds its state over the next prediction instead of integrating its inputs (OpenVINS's zero-velocity update
+  /// does the same), the inputs' noise integrated over a standstill being all drift. Robots without inputs ignore it.
+  virtual void set_at_rest(bool /*at_rest*/) {}
 
   Sensor& add_sensor(std::unique_ptr<Sensor> sensor);
   /// Gives the sensors without an id one from the map's counter (System::add_robot: data name their sensor before
@@ -155,6 +159,13 @@ class InertialRobot final : public Robot {
   bool pose_rate(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 1>& xi) const override;
   const models::InertialParams& params() const { return params_; }
   long samples_integrated() const { return steps_; }
+  /// While at rest, predict_to keeps p, q, v and g and lets only the biases random-walk (their noise added), unless
+  /// the samples of the interval themselves show motion (a gyro or accelerometer reading off the state's bias- and
+  /// gravity-corrected rest by more than kRestGyro / kRestAccel): then it integrates as usual.
+  void set_at_rest(bool at_rest) override { at_rest_ = at_rest; }
+  long samples_held() const { return held_; }
+  static constexpr double kRestGyro = 0.3;   // rad/s
+  static constexpr double kRestAccel = 4.0;  // m/s²
 
  private:
   struct Sample {
@@ -174,6 +185,9 @@ class InertialRobot final : public Robot {
   Eigen::Vector3d gyro_sum_ = Eigen::Vector3d::Zero(), gyro_mean_ = Eigen::Vector3d::Zero();
   TimeNs gyro_span_ = 0;
   bool gyro_mean_valid_ = false;
+  bool at_rest_ = false;
+  long held_ = 0;
+  bool interval_at_rest(TimeNs t) const;
 };
 
 }  // namespace rtslam::slam

@@ -51,8 +51,10 @@ ZeroVelocityUpdater::ZeroVelocityUpdater(ZeroVelocityOptions options) : o_(optio
 }
 
 bool ZeroVelocityUpdater::imu_at_rest(const RingBuffer<slam::ImuData>& inputs, TimeNs t) const {
+  // The window, or at the start of a stream what there is of it once that is a quarter of it (the images must agree
+  // too; a stream that starts at rest is then held from its first frames, not after a whole window of drift).
   const TimeNs from = t - from_seconds(o_.window_s);
-  if (inputs.empty() || inputs.front().t > from) return false;  // not a whole window yet
+  if (inputs.empty() || inputs.front().t > t - from_seconds(0.25 * o_.window_s)) return false;
   Eigen::Vector3d sg = Eigen::Vector3d::Zero(), sa = Eigen::Vector3d::Zero();
   Eigen::Vector3d qg = Eigen::Vector3d::Zero(), qa = Eigen::Vector3d::Zero();
   int n = 0;
@@ -96,11 +98,16 @@ void ZeroVelocityUpdater::after_step(slam::Map& map, slam::Robot& robot, const s
   }
   std::sort(last.begin(), last.end(), [](const Matched& a, const Matched& b) { return a.id < b.id; });
   disparity_ = -1.0;
-  if (static_cast<int>(displacements_.size()) < o_.min_matches) return;
-  auto mid = displacements_.begin() + static_cast<std::ptrdiff_t>(displacements_.size() / 2);
-  std::nth_element(displacements_.begin(), mid, displacements_.end());
-  disparity_ = *mid;
-  if (!o_.enabled || disparity_ > o_.max_disparity_px) return;
+  if (still_.size() <= static_cast<std::size_t>(sensor.id())) still_.resize(static_cast<std::size_t>(sensor.id()) + 1);
+  Verdict& still = still_[static_cast<std::size_t>(sensor.id())];
+  if (static_cast<int>(displacements_.size()) >= o_.min_matches) {
+    auto mid = displacements_.begin() + static_cast<std::ptrdiff_t>(displacements_.size() / 2);
+    std::nth_element(displacements_.begin(), mid, displacements_.end());
+    disparity_ = *mid;
+    still = Verdict{disparity_ <= o_.max_disparity_px, raw.t};
+  }
+  // Too few matches to judge: the images' previous verdict stands for up to `window` s (the IMU must still agree).
+  if (!o_.enabled || !still.still || raw.t - still.t > from_seconds(o_.window_s)) return;
   if (robot.needs_inputs() && !imu_at_rest(inputs, raw.t)) return;
 
   // v = 0 (robot blocks [p q v ...]: v at tangent rows 6..8; the constant-velocity robot also ω = 0 at 9..11).
@@ -118,6 +125,7 @@ void ZeroVelocityUpdater::after_step(slam::Map& map, slam::Robot& robot, const s
   if (r.ok()) {
     stats.zero_velocity = true;
     ++updates_;
+    robot.set_at_rest(true);  // held over the next prediction (robots with inputs; see Robot::set_at_rest)
   }
 }
 

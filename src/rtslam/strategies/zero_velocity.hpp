@@ -53,6 +53,13 @@ class ZeroVelocityUpdater final : public slam::StepHook {
     Eigen::Vector2d z;
   };
   std::vector<std::vector<Matched>> last_z_;
+  // Per sensor id: the images' latest verdict and its time, kept through frames with too few matches to judge for
+  // at most `window` s.
+  struct Verdict {
+    bool still = false;
+    TimeNs t = 0;
+  };
+  std::vector<Verdict> still_;
   std::vector<double> displacements_;
   Eigen::MatrixXd H_, R_;
   Eigen::VectorXd y_;

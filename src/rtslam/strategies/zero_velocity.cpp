@@ -55,20 +55,41 @@ bool ZeroVelocityUpdater::imu_at_rest(const RingBuffer<slam::ImuData>& inputs, T
   // too; a stream that starts at rest is then held from its first frames, not after a whole window of drift).
   const TimeNs from = t - from_seconds(o_.window_s);
   if (inputs.empty() || inputs.front().t > t - from_seconds(0.25 * o_.window_s)) return false;
+  // The spread of the readings averaged over blocks of kBlock: a body at rest on spinning rotors vibrates at tens to
+  // hundreds of Hz, which the block means average out; motion changes them.
+  constexpr TimeNs kBlock = 25'000'000;
   Eigen::Vector3d sg = Eigen::Vector3d::Zero(), sa = Eigen::Vector3d::Zero();
   Eigen::Vector3d qg = Eigen::Vector3d::Zero(), qa = Eigen::Vector3d::Zero();
-  int n = 0;
+  Eigen::Vector3d bg = Eigen::Vector3d::Zero(), ba = Eigen::Vector3d::Zero();
+  int n = 0, in_block = 0;
+  TimeNs block_end = t - kBlock;
+  const auto close_block = [&] {
+    if (in_block == 0) return;
+    bg /= in_block;
+    ba /= in_block;
+    sg += bg;
+    qg += bg.cwiseAbs2();
+    sa += ba;
+    qa += ba.cwiseAbs2();
+    ++n;
+    bg.setZero();
+    ba.setZero();
+    in_block = 0;
+  };
   for (std::size_t k = inputs.size(); k-- > 0;) {
     const slam::ImuData& d = inputs[k];
     if (d.t > t) continue;
     if (d.t < from) break;
-    sg += d.m.gyro;
-    qg += d.m.gyro.cwiseAbs2();
-    sa += d.m.accel;
-    qa += d.m.accel.cwiseAbs2();
-    ++n;
+    while (d.t <= block_end) {
+      close_block();
+      block_end -= kBlock;
+    }
+    bg += d.m.gyro;
+    ba += d.m.accel;
+    ++in_block;
   }
-  if (n < 5) return false;
+  close_block();
+  if (n < 4) return false;
   const auto spread = [n](const Eigen::Vector3d& s, const Eigen::Vector3d& q) {
     const Eigen::Vector3d mean = s / n;
     return (q / n - mean.cwiseAbs2()).cwiseMax(0.0).sum();  // Σ per-axis variances = (norm of the stds)²

@@ -3,8 +3,9 @@
 // pseudo-measurement v_WR = 0 (and, for the constant-velocity robot, ω = 0) with a small std — which stops the slow
 // drift a filter accumulates while standing (integrated accelerometer noise and bias; OpenVINS's zero-velocity update
 // plays the same part). At rest means, over the last `window` s:
-//   - the IMU: the spread of the gyro and of the accelerometer below thresholds (a vibrating MAV on its legs passes,
-//     a moving one does not: EuRoC V1_01 at rest gyro 0.02–0.085 rad/s, in flight ≥ 0.12), and
+//   - the IMU: the spread of the gyro and of the accelerometer readings averaged over 25 ms blocks below thresholds
+//     (a vibrating MAV on its legs passes — the block means average the rotors' vibration out —, a moving one does
+//     not), and
 //   - the images: the median displacement of the landmarks matched in this frame and the previous one below
 //     `max_disparity_px` (the IMU alone cannot tell a vibrating rest from slow motion).
 // The detector needs both; robots without inputs are judged by the images alone.

@@ -252,27 +252,22 @@ bool InertialRobot::predict_to(TimeNs t) {
           params_.accelerometer_random_walk * params_.accelerometer_random_walk * dt;
       Qacc_.diagonal().segment<3>(I::kDwb).array() += params_.gyroscope_random_walk * params_.gyroscope_random_walk * dt;
       ++held_;
-      time_ = t1;
-      if (t1 == next.t) {
-        prev_ = next;
-        pending_.pop_front();
-      }
-      continue;
-    }
-    if (fej) {
-      // The transition along the first-estimate states (fej_x_), the mean from the corrected one.
-      models::inertial_predict(fej_x_, m0, m1, to_seconds(t1 - time_), params_, fej_next_, &F_, &Q_);
-      fej_x_ = fej_next_;
-      models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_);
     } else {
-      models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_, &F_, &Q_);
+      if (fej) {
+        // The transition along the first-estimate states (fej_x_), the mean from the corrected one.
+        models::inertial_predict(fej_x_, m0, m1, to_seconds(t1 - time_), params_, fej_next_, &F_, &Q_);
+        fej_x_ = fej_next_;
+        models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_);
+      } else {
+        models::inertial_predict(x_, m0, m1, to_seconds(t1 - time_), params_, x_, &F_, &Q_);
+      }
+      tmp_.noalias() = F_ * Phi_;
+      Phi_ = tmp_;
+      tmp_.noalias() = F_ * Qacc_;
+      Qacc_.noalias() = tmp_ * F_.transpose();
+      Qacc_ += Q_;
+      ++steps_;
     }
-    tmp_.noalias() = F_ * Phi_;
-    Phi_ = tmp_;
-    tmp_.noalias() = F_ * Qacc_;
-    Qacc_.noalias() = tmp_ * F_.transpose();
-    Qacc_ += Q_;
-    ++steps_;
     time_ = t1;
     if (t1 == next.t) {
       prev_ = next;

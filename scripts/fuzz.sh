@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
 # Fuzzing (docs/testing.md, "Fuzzing"): builds the libFuzzer targets of fuzz/ with clang in build-fuzz/, replays
 # the committed corpora once (fuzz/corpus/<target>/: seeds and the inputs of past findings), then fuzzes each
-# target for SECONDS (default 600), one after another, in one process each (the machine has 2 shared cores).
+# target for SECONDS (default 600), FUZZ_JOBS targets at a time (default 1: the machine has 2 shared cores).
 #
 #   bash scripts/fuzz.sh [SECONDS] [TARGET...]      e.g.  bash scripts/fuzz.sh 60 calib_rig trajectory
-#   bash scripts/fuzz.sh 0                          build and replay only, no fuzzing (what scripts/test.sh runs)
+#   bash scripts/fuzz.sh 0                          build and replay only, no fuzzing
+#   FUZZ_BUILD=build-asan FUZZ_JOBS=2 bash scripts/fuzz.sh 20
+#                                                   the targets the test command's sanitizer build already made
+#                                                   (scripts/test.sh runs this): no configure, no build, no replay
+#                                                   (its ctest run replayed the corpora)
 #
-# Seeds: fuzz/corpus/<target>/ (committed, small) and build-fuzz/seeds/<target>/, made here from
-# ../shared/datasets when it exists (never committed). The corpus a run grows is kept in build-fuzz/corpus/<target>/
-# and used by the next run. Findings (crash-*, timeout-*, oom-*, leak-*) go to build-fuzz/findings/<target>/, logs
-# to build-fuzz/logs/<target>.log, one line per target to build-fuzz/logs/summary.txt.
+# Seeds: fuzz/corpus/<target>/ (committed, small) and <build>/seeds/<target>/, made here from
+# ../shared/datasets when it exists (never committed). The corpus a run grows is kept in <build>/corpus/<target>/
+# and used by the next run. Findings (crash-*, timeout-*, oom-*, leak-*) go to <build>/findings/<target>/, logs
+# to <build>/logs/<target>.log, one line per target to <build>/logs/summary.txt (<build>: build-fuzz or FUZZ_BUILD).
 # Exits non-zero if the replay fails or any target has a finding.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,23 +31,32 @@ for t in "${targets[@]}"; do
   [[ -n "${max_len[$t]:-}" ]] || { echo "fuzz: unknown target '$t' (known: ${all_targets[*]})" >&2; exit 2; }
 done
 
-bash scripts/deps.sh clang libfuzzer-14-dev libclang-rt-14-dev
-launcher=()
-if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
-cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
-  -DCMAKE_CXX_COMPILER=clang++ "${launcher[@]}" -DRTSLAM_FUZZ=ON -DRTSLAM_ONLY_MODULES="core;io" \
-  -DRTSLAM_BUILD_TESTS=OFF -DRTSLAM_BUILD_BENCH=OFF >/dev/null
-cmake --build build-fuzz -j "$(nproc)"
-
-out=$root/build-fuzz
+jobs=${FUZZ_JOBS:-1}
+[[ "$jobs" =~ ^[1-9][0-9]*$ ]] || { echo "fuzz: FUZZ_JOBS must be a positive integer, not '$jobs'" >&2; exit 2; }
 export ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=0
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-# The targets write their inputs to a scratch folder under TMPDIR: keep it (and what a crash leaves) in the build.
-export TMPDIR=$out/tmp
-rm -rf "$TMPDIR" && mkdir -p "$TMPDIR" "$out/logs"
-
-echo "fuzz: replaying fuzz/corpus/"
-ctest --test-dir build-fuzz/fuzz --output-on-failure
+if [[ -n "${FUZZ_BUILD:-}" ]]; then
+  out=$(cd "$FUZZ_BUILD" && pwd)
+  for t in "${targets[@]}"; do
+    [[ -x "$out/fuzz/fuzz_$t" ]] || { echo "fuzz: $out/fuzz/fuzz_$t not built (configure with -DRTSLAM_FUZZ=ON)" >&2; exit 2; }
+  done
+  # The targets write their inputs to a scratch folder under TMPDIR: keep it (and what a crash leaves) in the build.
+  export TMPDIR=$out/fuzz-tmp
+  rm -rf "$TMPDIR" && mkdir -p "$TMPDIR" "$out/logs"
+else
+  bash scripts/deps.sh clang libfuzzer-14-dev libclang-rt-14-dev
+  launcher=()
+  if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
+  cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
+    -DCMAKE_CXX_COMPILER=clang++ "${launcher[@]}" -DRTSLAM_FUZZ=ON -DRTSLAM_ONLY_MODULES="core;io" \
+    -DRTSLAM_BUILD_TESTS=OFF -DRTSLAM_BUILD_BENCH=OFF >/dev/null
+  cmake --build build-fuzz -j "$(nproc)"
+  out=$root/build-fuzz
+  export TMPDIR=$out/tmp
+  rm -rf "$TMPDIR" && mkdir -p "$TMPDIR" "$out/logs"
+  echo "fuzz: replaying fuzz/corpus/"
+  ctest --test-dir build-fuzz/fuzz --output-on-failure
+fi
 if ((seconds == 0)); then
   echo "fuzz: replay only (SECONDS is 0), no fuzzing"
   exit 0
@@ -78,42 +91,64 @@ if [[ -d "$data" ]]; then
     $(ls "$data"/monoslam-davison/frames/*.pgm 2>/dev/null | head -n 2); do
     images+=("$f")
   done
-  ((${#images[@]})) && build-fuzz/fuzz/fuzz_make_image_seeds "$seeds/image_decode" "${images[@]}"
+  ((${#images[@]})) && "$out/fuzz/fuzz_make_image_seeds" "$seeds/image_decode" "${images[@]}"
 else
   echo "fuzz: $data not found: fuzzing from the committed seeds only"
 fi
 
-failed=()
 summary=$out/logs/summary.txt
 : >"$summary"
-for t in "${targets[@]}"; do
+# One target: fuzz for $seconds, then one summary line (and the finding's lines) in its own files.
+fuzz_one() {
+  local t=$1 rc=0
   rm -rf "$out/findings/$t"
   mkdir -p "$out/corpus/$t" "$out/findings/$t" "$out/logs/$t"
-  echo "fuzz: $t for $seconds s (max_len ${max_len[$t]})"
-  rc=0
   # -jobs=1 -workers=1: one fuzzing process, its output copied into the log when it ends. Inputs that run longer
   # than 5 s, allocate more than 512 MB at once or grow the RSS above 2 GB are findings.
   (cd "$out/logs/$t" && "$out/fuzz/fuzz_$t" -jobs=1 -workers=1 -max_total_time="$seconds" \
     -max_len="${max_len[$t]}" -timeout=5 -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 \
     -artifact_prefix="$out/findings/$t/" "$out/corpus/$t" "$root/fuzz/corpus/$t" "$seeds/$t") \
     >"$out/logs/$t.log" 2>&1 || rc=$?
-  log=$out/logs/$t.log
+  local log=$out/logs/$t.log
   final_stat() { sed -n "s/^stat::$1: *//p" "$log" | tail -n 1; }
+  local last
   last=$(grep -E '^#[0-9]+' "$log" | tail -n 1 || true)
   status_field() { sed -n "s/.* $1: \([^ ]*\).*/\1/p" <<<"$last"; }
+  local pcs found line
   pcs=$(sed -n 's/.*(\([0-9]*\) inline 8-bit counters).*/\1/p' "$log" | head -n 1)
   found=$(find "$out/findings/$t" -type f | wc -l)
   line="$t: ${seconds} s, $(final_stat number_of_executed_units) runs ($(final_stat average_exec_per_sec)/s), coverage $(status_field cov)"
   line+=" of ${pcs:-?} counters, $(status_field ft) features, corpus $(status_field corp); findings: $found (exit $rc)"
+  echo "$line" >"$out/logs/$t.summary"
+  rm -f "$out/logs/$t.failed"
+  if ((rc != 0 || found > 0)); then
+    grep -E 'fuzz finding|ERROR: |SUMMARY: |runtime error|Test unit written' "$log" | head -n 20 >"$out/logs/$t.failed" || true
+    [[ -s "$out/logs/$t.failed" ]] || echo "exit $rc" >"$out/logs/$t.failed"
+  fi
+}
+echo "fuzz: ${targets[*]} for $seconds s each, $jobs at a time"
+running=0
+for t in "${targets[@]}"; do
+  if ((running >= jobs)); then
+    wait -n || true
+    running=$((running - 1))
+  fi
+  fuzz_one "$t" &
+  running=$((running + 1))
+done
+wait || true
+failed=()
+for t in "${targets[@]}"; do
+  line=$(cat "$out/logs/$t.summary" 2>/dev/null || echo "$t: no result (the fuzzing process did not report)")
   echo "fuzz: $line"
   echo "$line" >>"$summary"
-  if ((rc != 0 || found > 0)); then
+  if [[ -f "$out/logs/$t.failed" || ! -f "$out/logs/$t.summary" ]]; then
     failed+=("$t")
-    grep -E 'fuzz finding|ERROR: |SUMMARY: |runtime error|Test unit written' "$out/logs/$t.log" | head -n 20 || true
+    cat "$out/logs/$t.failed" 2>/dev/null || true
   fi
 done
 if ((${#failed[@]})); then
-  echo "fuzz: FINDINGS in ${failed[*]} (inputs in build-fuzz/findings/, logs in build-fuzz/logs/)" >&2
+  echo "fuzz: FINDINGS in ${failed[*]} (inputs in $out/findings/, logs in $out/logs/)" >&2
   exit 1
 fi
 echo "fuzz: no findings (${targets[*]})"

@@ -3,7 +3,8 @@
 set -euo pipefail
 packages=(
   cmake g++ ninja-build pkg-config ccache
-  lld  # the linker of our executables (CMakeLists.txt, RTSLAM_LLD)
+  # the test command's sanitizer build and its fuzz targets (scripts/test.sh), and the linker of both builds
+  clang lld libfuzzer-14-dev libclang-rt-14-dev
   libeigen3-dev libopencv-dev libdeflate-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
   libcivetweb-dev nodejs

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <system_error>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -309,7 +310,9 @@ IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_li
                                    format_seconds(e.t), format_seconds(prev)));
       continue;
     }
-    if (options.check_files && !fs::is_regular_file(e.path)) {
+    // error_code forms: a listed name the file system refuses (too long, ...) is a missing image, not an exception.
+    std::error_code fs_error;
+    if (options.check_files && !fs::is_regular_file(e.path, fs_error)) {
       reporter_.report(&SourceStats::missing_images, fmt::format("{}: image file {} not found", e.listed_at, e.path),
                        true);
       continue;
@@ -343,7 +346,8 @@ std::optional<Measurement> IndexedSource::next() {
     frame.image = decode_ahead_ ? decode_ahead_->take(decode_index_[item.index], &why)
                                 : read_grey_image(e.path, &why, &image_bits_);
     if (frame.image.empty()) {
-      const bool missing = !fs::exists(e.path);
+      std::error_code fs_error;
+      const bool missing = !fs::exists(e.path, fs_error);
       const bool unsupported = !missing && why.rfind("unsupported", 0) == 0;
       reporter_.report(missing       ? &SourceStats::missing_images
                        : unsupported ? &SourceStats::unsupported_images
@@ -437,7 +441,8 @@ std::optional<Measurement> WindowSource::next() {
 VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size,
                          BadInputPolicy policy)
     : path_(path), rate_hz_(rate_hz), t0_(t0), expected_size_(expected_size), reporter_(policy, stats_) {
-  if (!fs::is_regular_file(path)) throw IoError(fmt::format("{}: file not found", path));
+  std::error_code fs_error;
+  if (!fs::is_regular_file(path, fs_error)) throw IoError(fmt::format("{}: file not found", path));
   capture_ = std::make_unique<cv::VideoCapture>(path);
   if (!capture_->isOpened()) throw IoError(fmt::format("{}: cannot open the video (unknown format or codec)", path));
   if (rate_hz_ <= 0) rate_hz_ = capture_->get(cv::CAP_PROP_FPS);

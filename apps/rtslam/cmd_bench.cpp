@@ -21,6 +21,7 @@
 #include "rtslam/pipeline/demo_config.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
 #include "rtslam/pipeline/point_demo.hpp"
+#include "rtslam/sim/point_scene.hpp"
 
 namespace rtslam::cli {
 namespace {
@@ -200,7 +201,8 @@ void run_bench(const BenchOptions& bo) {
   std::vector<double> map;
   for (int s = 0; s < bo.seeds; ++s) {
     o.seed = static_cast<std::uint64_t>(s + 1);
-    const auto r = pipeline::run_point_demo(o);
+    sim::PointScene scene(o.scene());
+    const auto r = pipeline::run_point_demo(o, scene);
     // The first second is warm-up (map filling, first allocations); it is excluded.
     for (size_t k = static_cast<size_t>(o.rate_hz); k < r.frames.size(); ++k) {
       const auto& f = r.frames[k];

@@ -1,29 +1,21 @@
 #pragma once
-// The walking skeleton: monocular EKF-SLAM on simulated point measurements with known data association.
-// A room whose walls, floor and ceiling carry a few hundred 3D points; a camera (EuRoC cam0 intrinsics,
-// distortion and T_RS) on a hand-held robot body moving along the simulator's `handheld` trajectory; pixel
-// measurements with Gaussian noise; the constant-velocity robot, undelayed AHP initialization, reparametrization
-// to Euclidean points, and a policy map manager. Everything is seeded: the same options give the same output.
+// The walking skeleton: monocular EKF-SLAM on simulated point measurements with known data association. The scene
+// (sim/point_scene.hpp: points on a room's faces, the EuRoC cam0 camera on a hand-held body, pixel noise) makes the
+// measurements; this side is the SLAM system given only those measurements, the camera and the start pose: the
+// constant-velocity robot, undelayed AHP initialization, reparametrization to Euclidean points, and a policy map
+// manager. Everything is seeded: the same options give the same output.
 #include <cstdint>
 #include <functional>
 #include <vector>
 
 #include "rtslam/core/trajectory.hpp"
-#include "rtslam/io/calibration.hpp"
 #include "rtslam/models/robots/constant_velocity.hpp"
-#include "rtslam/models/sensors/pinhole_camera.hpp"
-#include "rtslam/math/rotation.hpp"
+#include "rtslam/sim/point_scene.hpp"
 #include "rtslam/slam/managers.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
 
 namespace rtslam::pipeline {
-
-/// EuRoC MAV cam0 (V1_01 sensor.yaml): 752x480, pinhole + radial-tangential, and its T_BS (our T_RS).
-models::CameraIntrinsics euroc_cam0_intrinsics();
-math::Pose euroc_cam0_T_RS();
-/// The demo camera as a rig calibration (cam0: the intrinsics and T_RS above).
-io::Rig demo_rig();
 
 /// RT-SLAM's association defaults, with the demo room's inverse-depth prior (d_min = 1 m, see below).
 strategies::KnownAssociationOptions demo_association_defaults();
@@ -32,6 +24,7 @@ strategies::KnownAssociationOptions demo_association_defaults();
 /// bounded map keeps room for what the camera sees now.
 strategies::MapPolicyOptions demo_map_defaults();
 
+/// The demo's options: the scene's (seed to sigma_px, see sim::PointSceneOptions) and the filter's.
 struct PointDemoOptions {
   std::uint64_t seed = 1;
   double duration_s = 30.0;
@@ -49,19 +42,21 @@ struct PointDemoOptions {
   strategies::MapPolicyOptions map = demo_map_defaults();
   int state_capacity = 600;                    // covariance rows of the filter's storage
   void validate() const;
+  /// The scene these options describe (measurements within association.margin_px of the border are not made).
+  sim::PointSceneOptions scene() const;
 };
 
 struct PointDemoResult {
   Trajectory estimate;     // T_WR per frame, with the 6x6 pose covariance
-  Trajectory groundtruth;  // true T_WR per frame
   std::vector<slam::FrameStats> frames;
   int landmarks_final = 0;
   int landmarks_created = 0;
   int euclidean_final = 0;
 };
 
-/// Runs the demo; `on_frame(i, n)` is called after each frame (progress display), may be empty.
-PointDemoResult run_point_demo(const PointDemoOptions& options,
+/// Runs the filter of `options` on every frame of `scene` (made from options.scene(); its truth is the caller's, for
+/// scoring afterwards); `on_frame(i, n)` is called after each frame (progress display), may be empty.
+PointDemoResult run_point_demo(const PointDemoOptions& options, sim::PointScene& scene,
                                const std::function<void(int, int)>& on_frame = {});
 
 }  // namespace rtslam::pipeline

@@ -2,7 +2,7 @@
 // The robot starters of image SLAM (slam::RobotStarter): how the System puts a robot into the map.
 //  - PoseStarter (constant-velocity robot): at the first image, at the world origin (the gauge: zero pose
 //    covariance, the velocity prior slam/initial_velocity_std), or at a known-landmark set's initial state (whose
-//    points it then adds: they fix scale and frame), or at a given state (the points demo's simulated pose).
+//    points it then adds: they fix scale and frame), or at a given state (the points demo's start pose).
 //  - InertialStarter (inertial robot): the visual-inertial start (vi_init.hpp) over a sliding window of images and
 //    the IMU, falling back to the IMU-only start (inertial_init.hpp) after vi_init/max_wait of failures; with
 //    vi_init off, the IMU-only start at the first image with imu/init_window seconds of IMU before it.

@@ -162,7 +162,7 @@ class World {
 };
 
 /// `n` points spread uniformly over the six faces of the box [lo, hi] (by area): the known-point world of the
-/// points demo (pipeline/point_demo.hpp), drawn from `rng`.
+/// points demo (sim/point_scene.hpp), drawn from `rng`.
 std::vector<Eigen::Vector3d> points_on_box_faces(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int n,
                                                  std::mt19937_64& rng);
 

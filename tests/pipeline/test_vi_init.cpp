@@ -1,4 +1,4 @@
-// The visual-inertial start (pipeline/vi_init.hpp) on rendered windows of the simulator with its exact ground
+// The visual-inertial start (strategies/vi_init.hpp) on rendered windows of the simulator with its exact ground
 // truth: in motion it finds the velocity at the first image and the gravity direction in the body frame, also in the
 // 400 deg/s phase of the high-dynamic sequence where features leave the view within the window, or — in windows
 // without enough parallax, or whose parts do not agree on one motion — says it cannot; a solution it gives is never
@@ -7,13 +7,14 @@
 
 #include <cstdio>
 
-#include "rtslam/pipeline/vi_init.hpp"
+#include "rtslam/strategies/vi_init.hpp"
 #include "rtslam/sim/simulation.hpp"
 
-namespace rtslam::pipeline {
+namespace rtslam::strategies {
 namespace {
 
 struct Window {
+  std::vector<cv::Mat> images;  // the frames' pixels
   std::vector<ViInitFrame> frames;
   std::vector<ImuWindowSample> imu;
   StampedPose truth;  // at the first image
@@ -25,7 +26,10 @@ Window window_of(const sim::Simulation& s, double from_s, double length_s) {
   const TimeNs t1 = t0 + from_seconds(length_s);
   for (std::size_t k = 0; k < s.image_times().size(); ++k) {
     const TimeNs t = s.image_times()[k];
-    if (t >= t0 && t <= t1) w.frames.push_back({t, s.render_image(k)});
+    if (t < t0 || t > t1) continue;
+    w.images.push_back(s.render_image(k));
+    const cv::Mat& m = w.images.back();
+    w.frames.push_back({t, vision::ImageView{m.data, m.cols, m.rows, static_cast<int>(m.step[0])}});
   }
   for (const auto& m : s.imu_samples()) {
     if (m.t >= t0 - from_seconds(0.1) && m.t <= t1 + from_seconds(0.1)) w.imu.push_back({m.t, {m.accel, m.gyro}});
@@ -132,16 +136,16 @@ TEST(ViInit, RefinementEstimatesTheGyroBias) {
 }
 
 }  // namespace
-}  // namespace rtslam::pipeline
+}  // namespace rtslam::strategies
 
-namespace rtslam::pipeline {
+namespace rtslam::strategies {
 namespace {
 
 // The start's prior fused with |g| = 9.81 ± 0.03: closed form of one scalar Kalman update. The accelerometer bias
 // along the vertical is correlated with gravity in the prior (g = −R (f − a_b)), so it takes the difference.
 TEST(InertialStart, GravityMagnitudeIsKnown) {
   using I = models::InertialIndex;
-  InertialOptions o;
+  InertialStartOptions o;
   InertialStart s;
   const Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   s.x.segment<3>(I::kG) = Eigen::Vector3d(0.0, 0.0, -9.90);
@@ -166,7 +170,7 @@ TEST(InertialStart, GravityMagnitudeIsKnown) {
 // is broader (a short window at 400 deg/s knows the bias to about 0.01 rad/s only).
 TEST(InertialStart, GyroBiasPriorCoversTheWindowsEstimate) {
   using I = models::InertialIndex;
-  InertialOptions o;
+  InertialStartOptions o;
   ViInitResult r;
   r.kind = ViInitResult::Kind::Dynamic;
   r.g_R = Eigen::Vector3d(0.0, 0.0, -9.81);
@@ -183,4 +187,4 @@ TEST(InertialStart, GyroBiasPriorCoversTheWindowsEstimate) {
 }
 
 }  // namespace
-}  // namespace rtslam::pipeline
+}  // namespace rtslam::strategies

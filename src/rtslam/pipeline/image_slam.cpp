@@ -17,7 +17,7 @@
 #include "rtslam/pipeline/known_landmarks.hpp"
 #include "rtslam/pipeline/builder.hpp"
 #include "rtslam/pipeline/starters.hpp"
-#include "rtslam/pipeline/vi_init.hpp"
+#include "rtslam/strategies/vi_init.hpp"
 #include "rtslam/slam/health.hpp"
 #include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/system.hpp"

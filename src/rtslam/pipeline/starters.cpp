@@ -8,6 +8,9 @@
 
 namespace rtslam::pipeline {
 
+using strategies::ImuWindowSample;
+using strategies::InertialStart;
+
 std::vector<ImuWindowSample> imu_window(const RingBuffer<slam::ImuData>& inputs) {
   std::vector<ImuWindowSample> w;
   w.reserve(inputs.size());
@@ -100,7 +103,7 @@ std::optional<slam::RobotStart> InertialStarter::offer(const slam::RawData& datu
   }
   const auto* image = dynamic_cast<const MatImage*>(&datum);
   if (image == nullptr) throw DataError("the inertial start takes images that own their pixels (MatImage)");
-  window_.push_back(ViInitFrame{datum.t, image->mat});
+  window_.push_back(WindowImage{datum.t, image->mat});
   return try_visual_inertial(inputs);
 }
 
@@ -108,20 +111,24 @@ std::optional<slam::RobotStart> InertialStarter::offer(const slam::RawData& datu
 // While it fails the window slides; after vi_init/max_wait of failures the IMU-only start takes over at the newest
 // image.
 std::optional<slam::RobotStart> InertialStarter::try_visual_inertial(const RingBuffer<slam::ImuData>& inputs) {
-  const ViInitOptions& v = o_.vi_init;
+  const strategies::ViInitOptions& v = o_.vi_init;
   if (first_image_t_ < 0) first_image_t_ = window_.front().t;
   if (window_.back().t - window_.front().t < from_seconds(v.window_s)) return std::nullopt;
-  const std::vector<ImuWindowSample> imu = imu_window(inputs);
-  const ViInitResult r = initialize_visual_inertial(window_, imu, camera_, T_RS_, v);
-  if (r.kind != ViInitResult::Kind::Failed) {
-    const InertialStart s0 = inertial_start_from_vi(r, o_);
+  const std::vector<strategies::ImuWindowSample> imu = imu_window(inputs);
+  views_.clear();
+  for (const WindowImage& w : window_) {
+    views_.push_back({w.t, vision::ImageView{w.image.data, w.image.cols, w.image.rows, static_cast<int>(w.image.step[0])}});
+  }
+  const strategies::ViInitResult r = strategies::initialize_visual_inertial(views_, imu, camera_, T_RS_, v);
+  if (r.kind != strategies::ViInitResult::Kind::Failed) {
+    const strategies::InertialStart s0 = strategies::inertial_start_from_vi(r, o_);
     slam::RobotStart s;
     s.x = s0.x;
     s.P = s0.P;
     s.t = window_.front().t;
     s.description = r.describe() + "; " + s0.describe();
     logger("slam")->info("inertial robot: {}", s.description);
-    if (r.kind == ViInitResult::Kind::Dynamic) depth_hint_ = r.median_depth_m;
+    if (r.kind == strategies::ViInitResult::Kind::Dynamic) depth_hint_ = r.median_depth_m;
     replay_.resize(window_.size());
     for (std::size_t k = 0; k < window_.size(); ++k) {
       if (!replay_[k]) replay_[k] = std::make_unique<MatImage>();

@@ -18,7 +18,6 @@
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
-#include "rtslam/pipeline/vi_init.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
 #include "rtslam/strategies/active_search.hpp"
@@ -81,7 +80,12 @@ class InertialStarter final : public slam::RobotStarter {
   models::PinholeCamera camera_;
   math::Pose T_RS_;
   strategies::ActiveSearchDataManager* dm_;
-  std::vector<ViInitFrame> window_;           // the visual-inertial start's images
+  struct WindowImage {
+    TimeNs t = 0;
+    cv::Mat image;
+  };
+  std::vector<WindowImage> window_;           // the visual-inertial start's images
+  std::vector<strategies::ViInitFrame> views_;  // the same, as the start takes them
   int sensor_id_ = -1;
   TimeNs first_image_t_ = -1;                 // of the current start attempt
   std::optional<double> depth_hint_;          // of the last visual-inertial start, for the data manager
@@ -91,6 +95,6 @@ class InertialStarter final : public slam::RobotStarter {
 };
 
 /// The recent IMU samples as the start functions take them.
-std::vector<ImuWindowSample> imu_window(const RingBuffer<slam::ImuData>& inputs);
+std::vector<strategies::ImuWindowSample> imu_window(const RingBuffer<slam::ImuData>& inputs);
 
 }  // namespace rtslam::pipeline

@@ -37,18 +37,48 @@
 #include <vector>
 
 #include <Eigen/Core>
-#include <opencv2/core.hpp>
 
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
-#include "rtslam/pipeline/inertial_init.hpp"
+#include "rtslam/strategies/inertial_start.hpp"
+#include "rtslam/vision/image.hpp"
 
-namespace rtslam::pipeline {
+namespace rtslam::strategies {
+
+struct ViInitOptions {
+  bool enabled = true;
+  double window_s = 0.4;                      // images used: the first window_s seconds ...
+  double max_window_s = 2.0;                  // ... growing up to this while parallax or excitation lack
+  double min_excitation_m = 0.1;              // m: displacement the accelerations must cause over the window
+  double max_wait_s = 1.0;                    // s of failed windows before the IMU-only start takes over
+  int min_frames = 5;
+  int min_track_frames = 5;                   // images a feature must be tracked over (not the whole window)
+  int cells_x = 8, cells_y = 5;               // feature grid (one Harris corner per cell)
+  int patch_size = 15;                        // ZNCC template (odd)
+  double min_score = 0.8;                     // ZNCC acceptance
+  double search_px = 40.0;                    // half-size of the search box around the rotation-predicted position
+  int min_features = 12;                      // tracked over min_track_frames images or more
+  double standstill_max_disparity_px = 1.0;   // median feature displacement over the window: at rest below this
+  double min_parallax_px = 8.0;               // median displacement after derotation needed for the dynamic solution
+  double max_reprojection_px = 2.0;           // RMS of the solution's reprojection errors
+  double gravity = 9.81;                      // m/s², the magnitude |g| imposed
+  double max_speed = 20.0;                    // m/s: a larger v₀ is rejected
+  double max_split_gravity_deg = 1.5;         // the window's first and last two thirds solved apart: gravity and
+  double max_split_velocity_ratio = 0.1;      // velocity must agree within these (velocity: 0.05 m/s + ratio·|v₀|)
+  // m/s², the refinement's prior on the accelerometer bias. Tighter than the filter's (imu/accel_bias_std): over a
+  // window of under a second the bias is barely separable from gravity's direction and the velocity, and a free bias
+  // fits the tracking noise with a wrong sign (0.3 m/s² off on recorded EuRoC windows, a 10 % error of |v0|, a scale
+  // error the filter keeps). The filter starts from the window's estimate with its own, broader prior.
+  double accel_bias_std = 0.02;
+  bool refine_gyro_bias = true;               // the maximum-likelihood refinement also estimates the gyro bias
+  void validate() const;
+};
+
 
 struct ViInitFrame {
-  TimeNs t = 0;   // in the IMU clock
-  cv::Mat image;  // CV_8UC1
+  TimeNs t = 0;               // in the IMU clock
+  vision::ImageView image;    // 8-bit grey, owned by the caller
 };
 
 struct ViInitResult {
@@ -77,7 +107,7 @@ struct ViInitResult {
 /// The filter's start from a successful result, at the window's first image: the gravity-aligned frame of
 /// initialize_inertial (attitude from −g), v₀ and g with their least-squares uncertainty (3σ, floored), the solved
 /// biases with the configured priors (the gyro bias's widened to its 3σ when that is broader); at rest as initialize_inertial's standstill (v = 0, gyro bias = mean gyro).
-InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialOptions& o);
+InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialStartOptions& o);
 
 /// Runs the start on the window's images (time-ordered, the first at t_0) and the IMU samples covering them. The
 /// gyro bias is estimated with the motion, and taken as the mean gyro at rest.
@@ -85,4 +115,4 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
                                         const models::PinholeCamera& camera, const math::Pose& T_RS,
                                         const ViInitOptions& options);
 
-}  // namespace rtslam::pipeline
+}  // namespace rtslam::strategies

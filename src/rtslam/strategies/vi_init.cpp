@@ -1,4 +1,4 @@
-#include "rtslam/pipeline/vi_init.hpp"
+#include "rtslam/strategies/vi_init.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,10 +11,46 @@
 #include <Eigen/Eigenvalues>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/yaml.hpp"
 #include "rtslam/vision/harris.hpp"
 #include "rtslam/vision/zncc.hpp"
 
-namespace rtslam::pipeline {
+namespace rtslam::strategies {
+
+void ViInitOptions::validate() const {
+  const std::string w = "imu/vi_init";
+  require_bound(window_s > 0.0 && window_s <= 5.0, w, "window", window_s, "in (0, 5] s");
+  require_bound(max_window_s >= window_s && max_window_s <= 10.0, w, "max_window", max_window_s,
+                "in [window, 10] s");
+  require_bound(min_excitation_m >= 0.0 && min_excitation_m < 10.0, w, "min_excitation_m", min_excitation_m,
+                "in [0, 10) m");
+  require_bound(max_wait_s >= 0.0 && max_wait_s <= 60.0, w, "max_wait", max_wait_s, "in [0, 60] s");
+  require_bound(min_frames >= 3 && min_frames <= 500, w, "min_frames", min_frames, "in [3, 500]");
+  require_bound(min_track_frames >= 3 && min_track_frames <= 500, w, "min_track_frames", min_track_frames,
+                "in [3, 500]");
+  require_bound(cells_x >= 1 && cells_x <= 64, w, "cells_x", cells_x, "in [1, 64]");
+  require_bound(cells_y >= 1 && cells_y <= 64, w, "cells_y", cells_y, "in [1, 64]");
+  require_bound(patch_size >= 5 && patch_size <= 41 && patch_size % 2 == 1, w, "patch_size", patch_size,
+                "odd, in [5, 41]");
+  require_bound(min_score > 0.0 && min_score < 1.0, w, "min_score", min_score, "in (0, 1)");
+  require_bound(search_px >= 2.0 && search_px <= 200.0, w, "search_px", search_px, "in [2, 200] px");
+  require_bound(min_features >= 4 && min_features <= 4096, w, "min_features", min_features, "in [4, 4096]");
+  require_bound(standstill_max_disparity_px > 0.0 && standstill_max_disparity_px < 100.0, w,
+                "standstill_max_disparity_px", standstill_max_disparity_px, "in (0, 100) px");
+  require_bound(min_parallax_px > 0.0 && min_parallax_px < 1000.0, w, "min_parallax_px", min_parallax_px,
+                "in (0, 1000) px");
+  require_bound(max_reprojection_px > 0.0 && max_reprojection_px < 100.0, w, "max_reprojection_px",
+                max_reprojection_px, "in (0, 100) px");
+  require_bound(gravity > 1.0 && gravity < 30.0, w, "gravity", gravity, "in (1, 30) m/s²");
+  require_bound(max_speed > 0.0 && max_speed <= 1e4, w, "max_speed", max_speed, "in (0, 1e4] m/s");
+  require_bound(max_split_gravity_deg > 0.0 && max_split_gravity_deg <= 90.0, w, "max_split_gravity_deg",
+                max_split_gravity_deg, "in (0, 90] deg");
+  require_bound(max_split_velocity_ratio > 0.0 && max_split_velocity_ratio <= 10.0, w, "max_split_velocity_ratio",
+                max_split_velocity_ratio, "in (0, 10]");
+  require_bound(accel_bias_std > 0.0 && accel_bias_std <= 10.0, w, "accel_bias_std", accel_bias_std,
+                "in (0, 10] m/s²");
+}
+
 
 using Eigen::Matrix3d;
 using Eigen::Vector2d;
@@ -102,10 +138,6 @@ double median(std::vector<double> v) {
   return *mid;
 }
 
-vision::ImageView view_of(const cv::Mat& m) {
-  return vision::ImageView{m.data, m.cols, m.rows, static_cast<int>(m.step[0])};
-}
-
 }  // namespace
 
 ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, const std::vector<ImuWindowSample>& imu,
@@ -160,7 +192,7 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   };
   std::vector<char> occupied(static_cast<std::size_t>(o.cells_x * o.cells_y));
   for (std::size_t i = 0; i < n_frames; ++i) {
-    const vision::ImageView vi = view_of(frames[i].image);
+    const vision::ImageView vi = frames[i].image;
     if (i > 0) {
       // Rotation of camera i-1 into camera i from the gyro: R_{Ci C(i-1)} = R_SR ΔR_iᵀ ΔR_{i-1} R_RS.
       const Matrix3d R_ci_cp = R_SR * pre[i].dR.transpose() * pre[i - 1].dR * R_RS;
@@ -764,7 +796,7 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
   return res;
 }
 
-InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialOptions& o) {
+InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialStartOptions& o) {
   RTSLAM_CHECK(r.kind != ViInitResult::Kind::Failed, "inertial_start_from_vi: the start failed");
   using I = models::InertialIndex;
   InertialStart s;
@@ -795,4 +827,4 @@ InertialStart inertial_start_from_vi(const ViInitResult& r, const InertialOption
   return s;
 }
 
-}  // namespace rtslam::pipeline
+}  // namespace rtslam::strategies

@@ -260,9 +260,8 @@ bool World::is_free(const Vector3d& p, double clearance) const {
   return true;
 }
 
-bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const { return cast(o, d, all_boxes_, hit); }
-
-bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxes, Hit& hit) const {
+[[gnu::always_inline]] inline bool World::cast_ray(const Vector3f& o, const Vector3f& d, std::span<const int> boxes,
+                                                   Hit& hit) const {
   constexpr float kInf = std::numeric_limits<float>::infinity();
   float inv[3];
   for (int i = 0; i < 3; ++i) inv[i] = d[i] != 0.0f ? 1.0f / d[i] : kInf;
@@ -339,7 +338,7 @@ void World::cast_boxes_parallel(const Vector3f& o, const Vector3f& d, std::span<
   }
 }
 
-float World::shade(int face_index, const Vector3f& p) const {
+[[gnu::always_inline]] inline float World::shade_hit(int face_index, const Vector3f& p) const {
   if (!markers_.empty()) {
     const Vector3d pd = p.cast<double>();
     for (const Marker& m : markers_)
@@ -358,10 +357,18 @@ float World::shade(int face_index, const Vector3f& p) const {
   return top + fy * (bot - top);
 }
 
+bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const { return cast_ray(o, d, all_boxes_, hit); }
+
+bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxes, Hit& hit) const {
+  return cast_ray(o, d, boxes, hit);
+}
+
+float World::shade(int face, const Vector3f& p) const { return shade_hit(face, p); }
+
 float World::trace(const Vector3f& o, const Vector3f& d, std::span<const int> boxes) const {
   Hit hit;
-  if (!cast(o, d, boxes, hit)) return 0.0f;
-  return shade(hit.face, o + hit.t * d);
+  if (!cast_ray(o, d, boxes, hit)) return 0.0f;
+  return shade_hit(hit.face, o + hit.t * d);
 }
 
 namespace {

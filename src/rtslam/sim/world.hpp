@@ -145,6 +145,10 @@ class World {
     int x0_max = 0, y0_max = 0;   // width - 2, height - 2
     float s_max = 0.0f, t_max = 0.0f;  // width - 1, height - 1
   };
+  // The bodies of cast() and shade(), forced inline into trace() (the renderer's per-sub-sample call): GCC does not
+  // inline the public functions themselves (-fPIC makes them interposable); inlined, a frame takes ~25 % less time.
+  bool cast_ray(const Eigen::Vector3f& o, const Eigen::Vector3f& d, std::span<const int> boxes, Hit& hit) const;
+  float shade_hit(int face, const Eigen::Vector3f& p) const;
   void cast_boxes_parallel(const Eigen::Vector3f& o, const Eigen::Vector3f& d, std::span<const int> boxes,
                            float& best, int& face) const;
   void add_faces(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi);

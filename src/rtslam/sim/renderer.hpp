@@ -60,9 +60,9 @@ class Renderer {
   struct Rect {  // on the z = 1 plane of the camera (normalised coordinates)
     float x_min, x_max, y_min, y_max;
   };
-  struct Frame;  // per-frame poses and obstacle rectangles
-  void render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, std::vector<float>& sums,
-                    std::vector<int>& boxes, cv::Mat& out) const;
+  struct Frame;    // per-frame poses and obstacle rectangles
+  struct Scratch;  // per-thread buffers
+  void render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, Scratch& scratch, cv::Mat& out) const;
 
   const World& world_;
   RenderOptions options_;

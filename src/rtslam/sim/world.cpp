@@ -365,10 +365,12 @@ bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxe
 
 float World::shade(int face, const Vector3f& p) const { return shade_hit(face, p); }
 
-float World::trace(const Vector3f& o, const Vector3f& d, std::span<const int> boxes) const {
-  Hit hit;
-  if (!cast_ray(o, d, boxes, hit)) return 0.0f;
-  return shade_hit(hit.face, o + hit.t * d);
+void World::trace(std::span<const Vector3f> o, std::span<const Vector3f> d, std::span<const int> boxes,
+                  float* grey) const {
+  for (std::size_t k = 0; k < d.size(); ++k) {
+    Hit hit;
+    grey[k] = cast_ray(o[k], d[k], boxes, hit) ? shade_hit(hit.face, o[k] + hit.t * d[k]) : 0.0f;
+  }
 }
 
 namespace {

@@ -346,8 +346,11 @@ void World::cast_boxes_parallel(const Vector3f& o, const Vector3f& d, std::span<
   }
   // FaceTexture::sample with the face's constants precomputed (same arithmetic, same result).
   const FaceSampler& f = samplers_[static_cast<std::size_t>(face_index)];
-  const float s = std::clamp((p[f.b] - f.lo_b) * inv_texel_, 0.0f, f.s_max);
-  const float t = std::clamp((p[f.c] - f.lo_c) * inv_texel_, 0.0f, f.t_max);
+  // p's coordinates on the texture axes by constant index: p[f.b] sent p through memory.
+  const float pb = f.b == 0 ? p.x() : f.b == 1 ? p.y() : p.z();
+  const float pc = f.c == 0 ? p.x() : f.c == 1 ? p.y() : p.z();
+  const float s = std::clamp((pb - f.lo_b) * inv_texel_, 0.0f, f.s_max);
+  const float t = std::clamp((pc - f.lo_c) * inv_texel_, 0.0f, f.t_max);
   const int x0 = std::min(static_cast<int>(s), f.x0_max), y0 = std::min(static_cast<int>(t), f.y0_max);
   const float fx = s - static_cast<float>(x0), fy = t - static_cast<float>(y0);
   const std::uint8_t* r0 = f.texels + static_cast<std::size_t>(y0) * f.width + static_cast<std::size_t>(x0);

@@ -70,7 +70,7 @@ Renderer::Renderer(const World& world, const models::PinholeCamera& camera, cons
   const int n = options_.supersampling;
   n2_ = n * n;
   rays_.assign(static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_) * static_cast<std::size_t>(n2_),
-               Vector3f::Zero());
+               Eigen::Vector2f::Constant(std::numeric_limits<float>::quiet_NaN()));
   auto fill = [&](int row_begin, int row_step) {
     Eigen::Vector3d ray;
     for (int v = row_begin; v < height_; v += row_step)
@@ -82,14 +82,14 @@ Renderer::Renderer(const World& world, const models::PinholeCamera& camera, cons
                 (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(u)) *
                     static_cast<std::size_t>(n2_) +
                 static_cast<std::size_t>(j * n + i);
-            if (camera.unproject(px, ray)) rays_[idx] = ray.cast<float>();
+            if (camera.unproject(px, ray)) rays_[idx] = ray.head<2>().cast<float>();  // ray.z() = 1
           }
   };
   std::vector<std::thread> pool;
   for (int k = 1; k < options_.threads; ++k) pool.emplace_back(fill, k, options_.threads);
   fill(0, options_.threads);
   for (auto& t : pool) t.join();
-  for (const Vector3f& r : rays_) valid_rays_ += r.z() > 0.0f ? 1 : 0;
+  for (const Eigen::Vector2f& r : rays_) valid_rays_ += std::isnan(r.x()) ? 0 : 1;
 
   tiles_x_ = (width_ + kTile - 1) / kTile;
   tiles_y_ = (height_ + kTile - 1) / kTile;
@@ -99,10 +99,10 @@ Renderer::Renderer(const World& world, const models::PinholeCamera& camera, cons
   for (int v = 0; v < height_; ++v)
     for (int u = 0; u < width_; ++u) {
       Rect& r = tile_rays_[static_cast<std::size_t>((v / kTile) * tiles_x_ + u / kTile)];
-      const Vector3f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
-                                            static_cast<std::size_t>(u)) * static_cast<std::size_t>(n2_);
+      const Eigen::Vector2f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
+                                                   static_cast<std::size_t>(u)) * static_cast<std::size_t>(n2_);
       for (int k = 0; k < n2_; ++k, ++ray) {
-        if (ray->z() <= 0.0f) continue;
+        if (std::isnan(ray->x())) continue;
         r.x_min = std::min(r.x_min, ray->x());
         r.x_max = std::max(r.x_max, ray->x());
         r.y_min = std::min(r.y_min, ray->y());
@@ -127,8 +127,17 @@ struct Renderer::Frame {
   std::vector<Rect> boxes;  // per obstacle: union over the poses of its projection's bounds (empty: never seen)
 };
 
-void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, std::vector<float>& sums,
-                            std::vector<int>& boxes, cv::Mat& out) const {
+struct Renderer::Scratch {
+  std::vector<float> sums;       // [(v - v_begin) * width + u]: a block's pixel values before noise
+  std::vector<int> boxes;        // the obstacles in view of a tile
+  std::vector<Vector3f> o, d;    // a tile's valid sub-sample rays in W
+  std::vector<float> grey;       // and what they see
+};
+
+void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, Scratch& scratch,
+                            cv::Mat& out) const {
+  std::vector<float>& sums = scratch.sums;
+  std::vector<int>& boxes = scratch.boxes;
   const int m = static_cast<int>(frame.R_WC.size());
   const int v_begin = tile_row * kTile, v_end = std::min(height_, v_begin + kTile);
   const float inv_n2 = 1.0f / static_cast<float>(n2_);
@@ -141,19 +150,32 @@ void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int ti
       if (b.x_min <= tile.x_max && b.x_max >= tile.x_min && b.y_min <= tile.y_max && b.y_max >= tile.y_min)
         boxes.push_back(static_cast<int>(k));
     }
+    // The tile's rays are traced in one call (the per-ray work inlined in world.cpp), then summed per pixel.
+    std::size_t n = 0;
     for (int v = v_begin; v < v_end; ++v) {
-      const Vector3f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
-                                            static_cast<std::size_t>(u_begin)) * static_cast<std::size_t>(n2_);
-      float* sum_row = sums.data() + static_cast<std::size_t>(v - v_begin) * static_cast<std::size_t>(width_);
-      for (int u = u_begin; u < u_end; ++u) {
-        float sum = 0.0f;
+      const Eigen::Vector2f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
+                                                   static_cast<std::size_t>(u_begin)) * static_cast<std::size_t>(n2_);
+      for (int u = u_begin; u < u_end; ++u)
         for (int k = 0; k < n2_; ++k, ++ray) {
-          if (ray->z() <= 0.0f) continue;
+          if (std::isnan(ray->x())) continue;
           // With blur, sub-sample k of pixel (u, v) is taken at instant (k + u + v) mod n² (decorrelates time
           // from sub-pixel position); without blur there is a single pose.
           const auto p = static_cast<std::size_t>(m == 1 ? 0 : (k + u + v) % m);
-          sum += world_.trace(frame.p_WC[p], frame.R_WC[p] * (*ray), boxes);
+          scratch.o[n] = frame.p_WC[p];
+          scratch.d[n] = frame.R_WC[p] * Vector3f(ray->x(), ray->y(), 1.0f);
+          ++n;
         }
+    }
+    world_.trace(std::span(scratch.o.data(), n), std::span(scratch.d.data(), n), boxes, scratch.grey.data());
+    const float* grey = scratch.grey.data();
+    for (int v = v_begin; v < v_end; ++v) {
+      const Eigen::Vector2f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
+                                                   static_cast<std::size_t>(u_begin)) * static_cast<std::size_t>(n2_);
+      float* sum_row = sums.data() + static_cast<std::size_t>(v - v_begin) * static_cast<std::size_t>(width_);
+      for (int u = u_begin; u < u_end; ++u) {
+        float sum = 0.0f;
+        for (int k = 0; k < n2_; ++k, ++ray)
+          if (!std::isnan(ray->x())) sum += *grey++;
         sum_row[u] = sum * inv_n2;
       }
     }
@@ -223,11 +245,15 @@ cv::Mat Renderer::render(const std::vector<math::Pose>& T_WC, std::uint64_t nois
   // Interleaved blocks of kTile rows balance the load (floor/ceiling rows cost the same as wall rows, but boxes
   // don't).
   auto work = [&](int k) {
-    std::vector<float> sums(static_cast<std::size_t>(kTile) * static_cast<std::size_t>(width_));
-    std::vector<int> boxes;
-    boxes.reserve(obstacles.size());
+    Scratch scratch;
+    scratch.sums.resize(static_cast<std::size_t>(kTile) * static_cast<std::size_t>(width_));
+    scratch.boxes.reserve(obstacles.size());
+    const auto tile_rays = static_cast<std::size_t>(kTile * kTile * n2_);
+    scratch.o.resize(tile_rays);
+    scratch.d.resize(tile_rays);
+    scratch.grey.resize(tile_rays);
     for (int tile_row = k; tile_row < tiles_y_; tile_row += threads)
-      render_block(frame, noise_seed, tile_row, sums, boxes, out);
+      render_block(frame, noise_seed, tile_row, scratch, out);
   };
   for (int k = 1; k < threads; ++k) pool.emplace_back(work, k);
   work(0);

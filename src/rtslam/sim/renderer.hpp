@@ -60,14 +60,16 @@ class Renderer {
   struct Rect {  // on the z = 1 plane of the camera (normalised coordinates)
     float x_min, x_max, y_min, y_max;
   };
-  struct Frame;  // per-frame poses and obstacle rectangles
-  void render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, std::vector<float>& sums,
-                    std::vector<int>& boxes, cv::Mat& out) const;
+  struct Frame;    // per-frame poses and obstacle rectangles
+  struct Scratch;  // per-thread buffers
+  void render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, Scratch& scratch, cv::Mat& out) const;
 
   const World& world_;
   RenderOptions options_;
   int width_ = 0, height_ = 0, n2_ = 1;
-  std::vector<Eigen::Vector3f> rays_;  // [(v * width + u) * n2 + k], camera frame, z = 1 (zero if invalid)
+  // [(v * width + u) * n2 + k]: (x, y) of the camera-frame ray (x, y, 1), NaN if invalid; z is not stored, as the
+  // table is read once per frame (11.6 MB instead of 17.3 at 752x480, n = 2).
+  std::vector<Eigen::Vector2f> rays_;
   std::size_t valid_rays_ = 0;
   int tiles_x_ = 0, tiles_y_ = 0;
   std::vector<Rect> tile_rays_;  // [ty * tiles_x + tx]: bounds of the tile's valid rays (empty: x_min > x_max)

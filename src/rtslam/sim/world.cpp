@@ -260,9 +260,8 @@ bool World::is_free(const Vector3d& p, double clearance) const {
   return true;
 }
 
-bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const { return cast(o, d, all_boxes_, hit); }
-
-bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxes, Hit& hit) const {
+[[gnu::always_inline]] inline bool World::cast_ray(const Vector3f& o, const Vector3f& d, std::span<const int> boxes,
+                                                   Hit& hit) const {
   constexpr float kInf = std::numeric_limits<float>::infinity();
   float inv[3];
   for (int i = 0; i < 3; ++i) inv[i] = d[i] != 0.0f ? 1.0f / d[i] : kInf;
@@ -339,7 +338,7 @@ void World::cast_boxes_parallel(const Vector3f& o, const Vector3f& d, std::span<
   }
 }
 
-float World::shade(int face_index, const Vector3f& p) const {
+[[gnu::always_inline]] inline float World::shade_hit(int face_index, const Vector3f& p) const {
   if (!markers_.empty()) {
     const Vector3d pd = p.cast<double>();
     for (const Marker& m : markers_)
@@ -347,8 +346,11 @@ float World::shade(int face_index, const Vector3f& p) const {
   }
   // FaceTexture::sample with the face's constants precomputed (same arithmetic, same result).
   const FaceSampler& f = samplers_[static_cast<std::size_t>(face_index)];
-  const float s = std::clamp((p[f.b] - f.lo_b) * inv_texel_, 0.0f, f.s_max);
-  const float t = std::clamp((p[f.c] - f.lo_c) * inv_texel_, 0.0f, f.t_max);
+  // p's coordinates on the texture axes by constant index: p[f.b] sent p through memory.
+  const float pb = f.b == 0 ? p.x() : f.b == 1 ? p.y() : p.z();
+  const float pc = f.c == 0 ? p.x() : f.c == 1 ? p.y() : p.z();
+  const float s = std::clamp((pb - f.lo_b) * inv_texel_, 0.0f, f.s_max);
+  const float t = std::clamp((pc - f.lo_c) * inv_texel_, 0.0f, f.t_max);
   const int x0 = std::min(static_cast<int>(s), f.x0_max), y0 = std::min(static_cast<int>(t), f.y0_max);
   const float fx = s - static_cast<float>(x0), fy = t - static_cast<float>(y0);
   const std::uint8_t* r0 = f.texels + static_cast<std::size_t>(y0) * f.width + static_cast<std::size_t>(x0);
@@ -358,10 +360,20 @@ float World::shade(int face_index, const Vector3f& p) const {
   return top + fy * (bot - top);
 }
 
-float World::trace(const Vector3f& o, const Vector3f& d, std::span<const int> boxes) const {
-  Hit hit;
-  if (!cast(o, d, boxes, hit)) return 0.0f;
-  return shade(hit.face, o + hit.t * d);
+bool World::cast(const Vector3f& o, const Vector3f& d, Hit& hit) const { return cast_ray(o, d, all_boxes_, hit); }
+
+bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxes, Hit& hit) const {
+  return cast_ray(o, d, boxes, hit);
+}
+
+float World::shade(int face, const Vector3f& p) const { return shade_hit(face, p); }
+
+void World::trace(std::span<const Vector3f> o, std::span<const Vector3f> d, std::span<const int> boxes,
+                  float* grey) const {
+  for (std::size_t k = 0; k < d.size(); ++k) {
+    Hit hit;
+    grey[k] = cast_ray(o[k], d[k], boxes, hit) ? shade_hit(hit.face, o[k] + hit.t * d[k]) : 0.0f;
+  }
 }
 
 namespace {

@@ -3,6 +3,7 @@
 // and as a ratio to the paper's 60 Hz budget. Micro-benchmarks of single routines are in bench/ (Google Benchmark).
 // `rtslam bench --pipeline` does the same for the image pipeline on a dataset (or the simulator preset of the
 // config), images decoded ahead (--prefetch), and adds the whole-run throughput (docs/performance.md).
+#include <algorithm>
 #include <time.h>
 #include <chrono>
 #include <ctime>
@@ -115,7 +116,7 @@ void run_pipeline_bench(const BenchOptions& bo) {
   progress.finish();
   const double load_after = bench_load_average();
 
-  std::vector<double> total_ms, predict, match, ransac, update, init, map;
+  std::vector<double> total_ms, predict, match, ransac, update, init, map, corrections;
   double filter_s = 0.0;
   const TimeNs t_first = result.frames.empty() ? 0 : result.frames.front().t;
   for (const auto& f : result.frames) {
@@ -128,8 +129,15 @@ void run_pipeline_bench(const BenchOptions& bo) {
     update.push_back(f.time_update_ms);
     init.push_back(f.time_init_ms);
     map.push_back(f.time_map_ms);
+    corrections.push_back(f.updated);
   }
   const auto t = io::percentiles(total_ms);
+  const auto corr = io::percentiles(corrections);
+  const double at_least_20 =
+      corrections.empty() ? 0.0
+                          : static_cast<double>(std::count_if(corrections.begin(), corrections.end(),
+                                                              [](double n) { return n >= 20.0; })) /
+                                static_cast<double>(corrections.size());
   std::vector<double> cpu_ms;
   for (const auto& [tf, ms] : frame_cpu_ms) {
     if (tf >= t_first + from_seconds(1.0)) cpu_ms.push_back(ms);
@@ -152,6 +160,9 @@ void run_pipeline_bench(const BenchOptions& bo) {
       "init {:.3f}, map {:.3f}\n",
       io::percentiles(predict).median, io::percentiles(match).median, io::percentiles(ransac).median,
       io::percentiles(update).median, io::percentiles(init).median, io::percentiles(map).median);
+  std::cout << fmt::format("  corrections per frame (landmarks updated): median {:.0f}, mean {:.1f}, {:.1f} % of frames "
+                           "with 20 or more\n",
+                           corr.median, corr.mean, 100.0 * at_least_20);
   std::cout << fmt::format(
       "  throughput: {:.1f} images/s over {:.2f} s wall ({}), filter {:.2f} s, waiting for "
       "input {:.2f} s, process CPU {:.2f} s, load average {:.2f} -> {:.2f} on {} cores\n",
@@ -178,6 +189,8 @@ void run_pipeline_bench(const BenchOptions& bo) {
     j["update_ms"] = io::to_json(io::percentiles(update));
     j["init_ms"] = io::to_json(io::percentiles(init));
     j["map_ms"] = io::to_json(io::percentiles(map));
+    j["corrections_per_frame"] = io::to_json(corr);
+    j["frames_with_20_corrections"] = at_least_20;
     j["throughput_fps"] = fps;
     j["wall_s"] = wall_s;
     j["filter_s"] = filter_s;

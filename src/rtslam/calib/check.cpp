@@ -108,13 +108,6 @@ double angle_between_deg(const Matrix3d& A, const Matrix3d& B) {
   return rad2deg(math::log_so3(Eigen::Quaterniond(A.transpose() * B)).norm());
 }
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
 vision::ImageView view_of(const cv::Mat& m) {
   return vision::ImageView{m.data, m.cols, m.rows, static_cast<int>(m.step[0])};
 }

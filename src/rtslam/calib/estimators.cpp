@@ -16,14 +16,14 @@ using Eigen::Matrix3d;
 using Eigen::Quaterniond;
 using Eigen::Vector3d;
 
-namespace {
-
 double median_of(std::vector<double> v) {
   if (v.empty()) return 0.0;
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
   return *mid;
 }
+
+namespace {
 
 Matrix3d exp_mat(const Vector3d& theta) { return math::exp_so3(theta).toRotationMatrix(); }
 

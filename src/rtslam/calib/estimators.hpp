@@ -100,4 +100,7 @@ struct HandEyeResult {
 HandEyeResult estimate_hand_eye_rotation(const std::vector<Eigen::Vector3d>& w_C, const std::vector<Eigen::Vector3d>& w_R,
                                          const std::vector<double>& weights, double min_excitation_rad_s);
 
+/// The upper median of `values` (the element at size / 2 once sorted); 0 for none.
+double median_of(std::vector<double> values);
+
 }  // namespace rtslam::calib

@@ -20,11 +20,6 @@ namespace rtslam::io {
 namespace fs = std::filesystem;
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
-
 /// A required scalar of a foreign (non-strict) YAML mapping.
 template <class T>
 T need(const YAML::Node& node, const std::string& key, const std::string& where) {
@@ -214,7 +209,7 @@ std::string to_string(DistortionModel model) {
 }
 
 DistortionModel distortion_model_from_string(const std::string& name, const std::string& where) {
-  const std::string n = lower(name);
+  const std::string n = to_lower(name);
   if (n == "none" || n == "pinhole") return DistortionModel::None;
   if (n == "radtan" || n == "radial-tangential" || n == "radial_tangential" || n == "plumb_bob")
     return DistortionModel::RadTan;
@@ -286,14 +281,14 @@ namespace {
 CameraCalibration euroc_camera(const std::string& path, std::vector<std::string>* warnings) {
   const YAML::Node y = load_yaml_lenient(path);
   if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
-  if (y["sensor_type"] && lower(need<std::string>(y, "sensor_type", path)) != "camera") {
+  if (y["sensor_type"] && to_lower(need<std::string>(y, "sensor_type", path)) != "camera") {
     throw ConfigError(fmt::format("{}: sensor_type is '{}', expected 'camera'", path,
                                   need<std::string>(y, "sensor_type", path)));
   }
   CameraCalibration cam;
   cam.name = folder_name(path);
   const std::string model = y["camera_model"] ? need<std::string>(y, "camera_model", path) : "pinhole";
-  if (lower(model) != "pinhole") {
+  if (to_lower(model) != "pinhole") {
     throw ConfigError(fmt::format("{}: camera_model '{}' is not supported (only pinhole)", path, model));
   }
   const auto res = numbers(y, "resolution", path, 2);
@@ -326,7 +321,7 @@ namespace {
 ImuCalibration euroc_imu(const std::string& path) {
   const YAML::Node y = load_yaml_lenient(path);
   if (!y.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", path));
-  if (y["sensor_type"] && lower(need<std::string>(y, "sensor_type", path)) != "imu") {
+  if (y["sensor_type"] && to_lower(need<std::string>(y, "sensor_type", path)) != "imu") {
     throw ConfigError(fmt::format("{}: sensor_type is '{}', expected 'imu'", path,
                                   need<std::string>(y, "sensor_type", path)));
   }
@@ -394,7 +389,7 @@ Rig kalibr(const std::string& camchain_path, const std::string& imu_path) {
     CameraCalibration cam;
     cam.name = name;
     const std::string model = y["camera_model"] ? need<std::string>(y, "camera_model", where) : "pinhole";
-    if (lower(model) != "pinhole") {
+    if (to_lower(model) != "pinhole") {
       throw ConfigError(fmt::format("{}: camera_model '{}' is not supported (only pinhole)", where, model));
     }
     const auto res = numbers(y, "resolution", where, 2);
@@ -649,7 +644,7 @@ void write_rig_yaml(const std::string& path, const Rig& rig) {
 namespace {
 
 Rig calibration_by_content(const std::string& path) {
-  if (lower(fs::path(path).extension().string()) == ".json") {
+  if (to_lower(fs::path(path).extension().string()) == ".json") {
     Rig rig;
     rig.cameras.push_back(load_monoslam_camera(path));
     return rig;
@@ -659,7 +654,7 @@ Rig calibration_by_content(const std::string& path) {
   if (y["cameras"]) return load_rig_yaml(path);
   if (y["cam0"]) return load_kalibr(path);
   if (y["sensor_type"]) {
-    const std::string type = lower(need<std::string>(y, "sensor_type", path));
+    const std::string type = to_lower(need<std::string>(y, "sensor_type", path));
     Rig rig;
     if (type == "camera") {
       rig.cameras.push_back(load_euroc_camera(path, &rig.warnings));

@@ -20,11 +20,6 @@ namespace rtslam::io {
 namespace fs = std::filesystem;
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
-
 bool is_header(std::string_view s) {
   s = trim(s);
   return !s.empty() && (s.front() == '#' || std::isalpha(static_cast<unsigned char>(s.front())));
@@ -400,7 +395,7 @@ Dataset open_images(const fs::path& root, const DatasetOptions& o) {
 
 bool is_video_file(const fs::path& p) {
   static const char* kExt[] = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".mpg", ".mpeg", ".m4v", ".wmv"};
-  const std::string e = lower(p.extension().string());
+  const std::string e = to_lower(p.extension().string());
   return std::any_of(std::begin(kExt), std::end(kExt), [&](const char* x) { return e == x; });
 }
 
@@ -460,7 +455,7 @@ std::vector<std::string> list_images(const std::string& folder) {
   std::vector<std::string> names;
   for (const auto& entry : fs::directory_iterator(folder)) {
     if (!entry.is_regular_file()) continue;
-    const std::string e = lower(entry.path().extension().string());
+    const std::string e = to_lower(entry.path().extension().string());
     if (std::any_of(std::begin(kExt), std::end(kExt), [&](const char* x) { return e == x; })) {
       names.push_back(entry.path().filename().string());
     }
@@ -474,7 +469,7 @@ std::string detect_dataset_kind(const std::string& path) {
   const fs::path p(path);
   if (fs::is_regular_file(p)) {
     if (is_video_file(p)) return "video";
-    if (lower(p.extension().string()) == ".bag") return "rosbag";
+    if (to_lower(p.extension().string()) == ".bag") return "rosbag";
     throw IoError(fmt::format("{}: a file that is not a known video type (mp4, avi, mkv, ...) or a ROS bag (.bag)",
                               path));
   }
@@ -526,7 +521,7 @@ Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
   std::string path = spec;
   const size_t colon = spec.find(':');
   if (colon != std::string::npos && colon > 1) {  // "euroc:/data/..." (colon > 1 keeps "C:\\..." paths intact)
-    const std::string k = lower(spec.substr(0, colon));
+    const std::string k = to_lower(spec.substr(0, colon));
     if (k == "euroc" || k == "asl" || k == "tum" || k == "kitti" || k == "images" || k == "video" || k == "rosbag" ||
         k == "camera") {
       kind = k == "asl" ? "euroc" : k;

@@ -1,5 +1,8 @@
 #include "rtslam/io/text.hpp"
 
+#include <algorithm>
+#include <cctype>
+
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -10,6 +13,12 @@
 #include "rtslam/core/error.hpp"
 
 namespace rtslam::io {
+
+std::string to_lower(std::string_view s) {
+  std::string out(s);
+  std::transform(out.begin(), out.end(), out.begin(), [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  return out;
+}
 
 std::string_view trim(std::string_view s) {
   const auto is_space = [](char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; };

@@ -12,6 +12,9 @@
 
 namespace rtslam::io {
 
+/// ASCII lower case ("EuRoC" -> "euroc"): file extensions, YAML model names.
+std::string to_lower(std::string_view s);
+
 /// Removes leading/trailing spaces, tabs and '\r'.
 std::string_view trim(std::string_view s);
 

@@ -16,12 +16,6 @@
 namespace rtslam::io {
 namespace {
 
-std::string lower(std::string_view s) {
-  std::string out(s);
-  std::transform(out.begin(), out.end(), out.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return out;
-}
-
 bool is_comment_or_blank(std::string_view line) {
   line = trim(line);
   return line.empty() || line.front() == '#' || line.front() == '%';
@@ -137,7 +131,7 @@ struct CsvLayout {
 CsvLayout layout_from_header(const std::vector<std::string_view>& names) {
   CsvLayout l;
   for (auto name : names) {
-    const std::string n = lower(name);
+    const std::string n = to_lower(name);
     if (n.rfind("v_", 0) == 0 || n == "vx") l.velocity = true;
     if (n.rfind("b_w", 0) == 0 || n == "bwx") l.gyro_bias = true;
     if (n.rfind("b_a", 0) == 0 || n == "bax") l.accel_bias = true;
@@ -258,7 +252,7 @@ TrajectoryFormat detect_trajectory_format(const std::string& path) {
   const std::string line = first_data_line(path);
   if (line.empty()) {
     // An empty trajectory: go by the extension.
-    return lower(std::filesystem::path(path).extension().string()) == ".csv" ? TrajectoryFormat::EurocCsv
+    return to_lower(std::filesystem::path(path).extension().string()) == ".csv" ? TrajectoryFormat::EurocCsv
                                                                              : TrajectoryFormat::Tum;
   }
   if (line.find(',') != std::string::npos) return TrajectoryFormat::EurocCsv;

@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "rtslam/vision/peak.hpp"
 #include "rtslam/vision/simd.hpp"
 
 #if defined(__x86_64__)
@@ -431,7 +432,6 @@ RTSLAM_AVX2 std::uint32_t trace_row_avx2(const ResponseRun& r) {
   return trace_row_from(r, i, *std::max_element(lanes, lanes + 8));
 }
 
-#undef RTSLAM_AVX2
 #endif  // __x86_64__
 
 // Förstner-style refinement: the point q closest, in the least-squares sense, to the lines through every pixel x_i
@@ -472,13 +472,6 @@ bool edge_lines_refine(ImageView image, int u0, int v0, int r, double* u, double
 }
 
 constexpr int kFitMargin = 3;  // responses computed beyond the candidates, for the 5x5 fit and one re-centring
-
-// Quadratic peak offset along one axis from three samples; 0 if the samples are not concave.
-double parabola_offset(double rm, double r0, double rp) {
-  const double curv = rm - 2.0 * r0 + rp;
-  if (!(curv < 0.0)) return 0.0;
-  return std::clamp(0.5 * (rm - rp) / curv, -0.5, 0.5);
-}
 
 }  // namespace
 

@@ -187,7 +187,6 @@ RTSLAM_AVX2 void row_sum_avx2(const std::uint8_t* src, int w, const std::uint32_
   row_sum_from(src, x, w, row_sum, s_prev, s);
 }
 
-#undef RTSLAM_AVX2
 #endif  // __x86_64__
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include <Eigen/LU>
 
+#include "rtslam/vision/peak.hpp"
 #include "rtslam/vision/simd.hpp"
 
 #if defined(__x86_64__)
@@ -464,11 +465,6 @@ bool zncc_window(const Patch& t, const Window& w, bool prune, int step, double f
   }
   *score = static_cast<double>(n * sab - t.sum() * rest_sum[0]) * inv_den;
   return true;
-}
-
-double parabola_offset(double rm, double r0, double rp) {
-  const double curv = rm - 2.0 * r0 + rp;
-  return curv < 0.0 ? std::clamp(0.5 * (rm - rp) / curv, -0.5, 0.5) : 0.0;
 }
 
 }  // namespace

@@ -175,11 +175,8 @@ std::vector<std::vector<std::pair<Vector2d, Vector2d>>> track(const std::vector<
       for (int cx = 0; cx < o.cells_x; ++cx) {
         const int cell = cy * o.cells_x + cx;
         if (occupied[static_cast<std::size_t>(cell)]) continue;
-        const int x0 = border + (in.width - 2 * border) * cx / o.cells_x;
-        const int x1 = border + (in.width - 2 * border) * (cx + 1) / o.cells_x;
-        const int y0 = border + (in.height - 2 * border) * cy / o.cells_y;
-        const int y1 = border + (in.height - 2 * border) * (cy + 1) / o.cells_y;
-        const auto c = harris.best_corner(view, vision::Roi{x0, y0, x1 - x0, y1 - y0});
+        const auto c =
+            harris.best_corner(view, vision::grid_cell(in.width, in.height, border, o.cells_x, o.cells_y, cx, cy));
         if (!c) continue;
         Track t;
         if (!t.patch.extract(view, c->u_px, c->v_px, o.patch_size) || t.patch.centred_energy() <= 0) continue;

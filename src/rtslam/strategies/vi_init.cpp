@@ -224,11 +224,8 @@ ViInitResult initialize_visual_inertial(const std::vector<ViInitFrame>& frames, 
     for (int cy = 0; cy < o.cells_y; ++cy) {
       for (int cx = 0; cx < o.cells_x; ++cx) {
         if (occupied[static_cast<std::size_t>(cy * o.cells_x + cx)]) continue;
-        const int x0 = border + (in.width - 2 * border) * cx / o.cells_x;
-        const int x1 = border + (in.width - 2 * border) * (cx + 1) / o.cells_x;
-        const int y0 = border + (in.height - 2 * border) * cy / o.cells_y;
-        const int y1 = border + (in.height - 2 * border) * (cy + 1) / o.cells_y;
-        const auto c = harris.best_corner(vi, vision::Roi{x0, y0, x1 - x0, y1 - y0});
+        const auto c =
+            harris.best_corner(vi, vision::grid_cell(in.width, in.height, border, o.cells_x, o.cells_y, cx, cy));
         if (!c) continue;
         Track t;
         t.first = i;

@@ -31,6 +31,16 @@ struct Roi {
   bool operator==(const Roi&) const = default;
 };
 
+/// Cell (cx, cy) of a cells_x × cells_y grid laid over a width × height image inside a border: integer bounds, the
+/// cells tile the inner rectangle exactly.
+inline Roi grid_cell(int width, int height, int border, int cells_x, int cells_y, int cx, int cy) {
+  const int x0 = border + (width - 2 * border) * cx / cells_x;
+  const int x1 = border + (width - 2 * border) * (cx + 1) / cells_x;
+  const int y0 = border + (height - 2 * border) * cy / cells_y;
+  const int y1 = border + (height - 2 * border) * (cy + 1) / cells_y;
+  return Roi{x0, y0, x1 - x0, y1 - y0};
+}
+
 /// A read-only window on 8-bit grey pixels owned elsewhere (an Image, a camera buffer, a cv::Mat).
 struct ImageView {
   const std::uint8_t* data = nullptr;

@@ -117,7 +117,7 @@ Recording make_recording(const RecordingOptions& o) {
   return r;
 }
 
-std::filesystem::path temp_dir(const std::string& name) {
+std::filesystem::path imu_noise_dir(const std::string& name) {
   const auto d = std::filesystem::temp_directory_path() / fmt::format("rtslam_imu_noise_{}_{}", name, ::getpid());
   std::filesystem::remove_all(d);
   std::filesystem::create_directories(d);
@@ -227,7 +227,7 @@ TEST(ImuNoise, StatesWithoutVelocityOrNoOverlapAreDataErrors) {
 }
 
 TEST(ImuNoise, MissingGroundTruthFileIsAnIoErrorNamingIt) {
-  const auto d = temp_dir("nogt");
+  const auto d = imu_noise_dir("nogt");
   std::filesystem::create_directories(d / "mav0" / "imu0");
   std::ofstream(d / "mav0" / "imu0" / "data.csv") << "#t,wx,wy,wz,ax,ay,az\n0,0,0,0,0,0,9.81\n";
   try {

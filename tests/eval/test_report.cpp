@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path temp_dir(const std::string& name) {
+fs::path report_dir(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / fmt::format("rtslam_report_{}_{}", name, ::getpid());
   fs::remove_all(d);
   fs::create_directories(d);
@@ -43,7 +43,7 @@ bool have_gnuplot() { return !find_in_path("gnuplot").empty(); }
 
 TEST(Report, RunReportInlinesEveryFigureAsSvgAndWritesPngs) {
   if (!have_gnuplot()) GTEST_SKIP() << "gnuplot not installed";
-  const fs::path dir = temp_dir("run");
+  const fs::path dir = report_dir("run");
   test::write_fake_run(dir.string(), {.seed = 1, .duration_s = 6.0});
   ReportOptions o;
   o.eval.align = Alignment::Origin;
@@ -68,7 +68,7 @@ TEST(Report, RunReportInlinesEveryFigureAsSvgAndWritesPngs) {
 
 TEST(Report, BatchReportShowsAggregateTableAndAverageNees) {
   if (!have_gnuplot()) GTEST_SKIP() << "gnuplot not installed";
-  const fs::path dir = temp_dir("batch");
+  const fs::path dir = report_dir("batch");
   BatchOptions o;
   o.out_dir = dir.string();
   o.executable = "/nonexistent/rtslam";  // never run: the runs are written directly below
@@ -86,7 +86,7 @@ TEST(Report, BatchReportShowsAggregateTableAndAverageNees) {
 }
 
 TEST(Report, MissingGnuplotGivesAClearError) {
-  const fs::path dir = temp_dir("nognuplot");
+  const fs::path dir = report_dir("nognuplot");
   test::write_fake_run(dir.string(), {.seed = 1, .duration_s = 2.0});
   ::setenv("RTSLAM_GNUPLOT", "/nonexistent/gnuplot", 1);
   try {

@@ -18,7 +18,6 @@
 namespace rtslam::io {
 namespace {
 
-constexpr TimeNs kMs = 1'000'000;
 
 TEST(CameraFrameTime, TakesThePlausibleDriverTimeElseTheGrabTime) {
   const TimeNs grab = 5'000 * kNsPerSecond;  // 5000 s of uptime
@@ -29,10 +28,10 @@ TEST(CameraFrameTime, TakesThePlausibleDriverTimeElseTheGrabTime) {
   EXPECT_EQ(camera_frame_time(-1.0, grab, 0), grab);
   EXPECT_EQ(camera_frame_time(std::nan(""), grab, 0), grab);
   EXPECT_EQ(camera_frame_time(1.7e12, grab, 0), grab);
-  EXPECT_EQ(camera_frame_time(1e-6 * static_cast<double>(grab + 5 * kMs), grab, 0), grab);
+  EXPECT_EQ(camera_frame_time(1e-6 * static_cast<double>(grab + 5 * kNsPerMs), grab, 0), grab);
   EXPECT_EQ(camera_frame_time(1e-6 * static_cast<double>(grab - 2 * kNsPerSecond), grab, 0), grab);
   // Not after the previous frame: the grab time; and times always increase.
-  EXPECT_EQ(camera_frame_time(1e-6 * static_cast<double>(grab - 10 * kMs), grab, grab - 10 * kMs), grab);
+  EXPECT_EQ(camera_frame_time(1e-6 * static_cast<double>(grab - 10 * kNsPerMs), grab, grab - 10 * kNsPerMs), grab);
   EXPECT_EQ(camera_frame_time(0.0, grab, grab), grab + 1);
 }
 

@@ -14,7 +14,6 @@ namespace rtslam::io {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr TimeNs kMs = 1'000'000;
 
 // `seconds` of a 20 Hz camera (tiny images) and a 200 Hz IMU, time ordered; throws at `fail_at` if set.
 class SyntheticStream final : public Source {
@@ -25,24 +24,26 @@ class SyntheticStream final : public Source {
     if (t_ > end_) return std::nullopt;
     if (fail_at_ && t_ >= *fail_at_) throw DataError("synthetic.csv:7: broken line");
     const TimeNs t = t_;
-    const bool image = t % (50 * kMs) == 0 && !image_done_;
+    const bool image = t % (50 * kNsPerMs) == 0 && !image_done_;
     if (image) {
       image_done_ = true;
       ImageFrame f;
       f.t = t;
-      f.image = cv::Mat(4, 4, CV_8UC1, cv::Scalar(static_cast<int>((t / (50 * kMs)) % 256)));
+      f.image = cv::Mat(4, 4, CV_8UC1, cv::Scalar(static_cast<int>((t / (50 * kNsPerMs)) % 256)));
       ++stats_.images;
       return f;
     }
     image_done_ = false;
-    t_ += 5 * kMs;
+    t_ += 5 * kNsPerMs;
     ImuSample s;
     s.t = t;
     ++stats_.imu_samples;
     return s;
   }
   const SourceStats& stats() const override { return stats_; }
-  std::optional<std::size_t> image_count() const override { return static_cast<std::size_t>(end_ / (50 * kMs)) + 1; }
+  std::optional<std::size_t> image_count() const override {
+    return static_cast<std::size_t>(end_ / (50 * kNsPerMs)) + 1;
+  }
 
  private:
   TimeNs t_ = 0, end_;
@@ -62,7 +63,7 @@ Taken consume(RealtimeSource& src, std::chrono::milliseconds per_image) {
   while (auto m = src.next()) {
     if (const auto* f = std::get_if<ImageFrame>(&*m)) {
       out.images.push_back(f->t);
-      EXPECT_EQ(f->image.at<unsigned char>(0, 0), static_cast<unsigned char>((f->t / (50 * kMs)) % 256));
+      EXPECT_EQ(f->image.at<unsigned char>(0, 0), static_cast<unsigned char>((f->t / (50 * kNsPerMs)) % 256));
       std::this_thread::sleep_for(per_image);  // the filter's work
     } else {
       out.imu.push_back(time_of(*m));
@@ -77,7 +78,7 @@ TEST(Realtime, AtOneTimesTheClockAFastConsumerGetsEverythingPacedByTheClock) {
   const Taken t = consume(src, std::chrono::milliseconds(1));
   ASSERT_EQ(t.imu.size(), 201u);
   ASSERT_EQ(t.images.size(), 21u);
-  for (std::size_t k = 1; k < t.imu.size(); ++k) EXPECT_EQ(t.imu[k] - t.imu[k - 1], 5 * kMs);
+  for (std::size_t k = 1; k < t.imu.size(); ++k) EXPECT_EQ(t.imu[k] - t.imu[k - 1], 5 * kNsPerMs);
   const RealtimeStats s = src.realtime();
   EXPECT_EQ(s.images_dropped, 0u);
   EXPECT_EQ(s.images_taken, 21u);
@@ -92,7 +93,7 @@ TEST(Realtime, AtTenTimesASlowConsumerDropsLateImagesButNoImuAndKeepsUpWithTheCl
   const Taken t = consume(src, std::chrono::milliseconds(12));
   const RealtimeStats s = src.realtime();
   EXPECT_EQ(t.imu.size(), 401u);  // the IMU is never dropped
-  for (std::size_t k = 1; k < t.imu.size(); ++k) EXPECT_EQ(t.imu[k] - t.imu[k - 1], 5 * kMs);
+  for (std::size_t k = 1; k < t.imu.size(); ++k) EXPECT_EQ(t.imu[k] - t.imu[k - 1], 5 * kNsPerMs);
   EXPECT_EQ(s.images_released, 41u);
   EXPECT_GT(s.images_dropped, 5u);
   EXPECT_EQ(s.images_taken + s.images_dropped, s.images_released);
@@ -104,7 +105,7 @@ TEST(Realtime, AtTenTimesASlowConsumerDropsLateImagesButNoImuAndKeepsUpWithTheCl
 }
 
 TEST(Realtime, AnErrorOfTheStreamArrivesAtItsPlace) {
-  RealtimeSource src(std::make_unique<SyntheticStream>(1.0, 100 * kMs), 50.0);
+  RealtimeSource src(std::make_unique<SyntheticStream>(1.0, 100 * kNsPerMs), 50.0);
   std::size_t imu = 0, images = 0;
   try {
     while (auto m = src.next()) ++(std::holds_alternative<ImuSample>(*m) ? imu : images);

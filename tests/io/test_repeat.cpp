@@ -10,7 +10,6 @@
 namespace rtslam::io {
 namespace {
 
-constexpr TimeNs kMs = 1'000'000;
 
 // A 200 Hz IMU from t0 for `n` samples with an image every 10th sample (at the same time as that sample).
 class TinyStream final : public Source {
@@ -20,7 +19,7 @@ class TinyStream final : public Source {
   }
   std::optional<Measurement> next() override {
     if (k_ >= n_) return std::nullopt;
-    const TimeNs t = t0_ + k_ * 5 * kMs;
+    const TimeNs t = t0_ + k_ * 5 * kNsPerMs;
     if (k_ % 10 == 0 && !image_done_) {
       image_done_ = true;
       ImageFrame f;
@@ -48,7 +47,7 @@ class TinyStream final : public Source {
 
 TEST(RepeatSource, ReplaysEveryRepetitionWithContinuingTimes) {
   int opened = 0;
-  RepeatSource src([&] { ++opened; return std::make_unique<TinyStream>(1000 * kMs, 40, opened == 2); }, 3);
+  RepeatSource src([&] { ++opened; return std::make_unique<TinyStream>(1000 * kNsPerMs, 40, opened == 2); }, 3);
   EXPECT_EQ(src.image_count(), std::nullopt);  // unknown before the first repetition is open
   std::vector<TimeNs> imu, images;
   TimeNs last = -1;
@@ -61,8 +60,8 @@ TEST(RepeatSource, ReplaysEveryRepetitionWithContinuingTimes) {
   EXPECT_EQ(opened, 3);
   ASSERT_EQ(imu.size(), 120u);
   ASSERT_EQ(images.size(), 12u);
-  for (std::size_t i = 1; i < imu.size(); ++i) EXPECT_EQ(imu[i] - imu[i - 1], 5 * kMs) << "sample " << i;
-  EXPECT_EQ(imu.front(), 1000 * kMs);
+  for (std::size_t i = 1; i < imu.size(); ++i) EXPECT_EQ(imu[i] - imu[i - 1], 5 * kNsPerMs) << "sample " << i;
+  EXPECT_EQ(imu.front(), 1000 * kNsPerMs);
   EXPECT_EQ(images[4], imu[40]);  // the second repetition's first image: with its first IMU sample, 5 ms on
   EXPECT_EQ(src.stats().images, 12u);
   EXPECT_EQ(src.stats().imu_samples, 120u);
@@ -73,12 +72,12 @@ TEST(RepeatSource, ReplaysEveryRepetitionWithContinuingTimes) {
 }
 
 TEST(RepeatSource, OnceIsTheStreamItself) {
-  RepeatSource src([] { return std::make_unique<TinyStream>(7 * kMs, 5, false); }, 1);
+  RepeatSource src([] { return std::make_unique<TinyStream>(7 * kNsPerMs, 5, false); }, 1);
   std::vector<TimeNs> t;
   while (auto m = src.next()) t.push_back(time_of(*m));
   ASSERT_EQ(t.size(), 6u);  // one image + five IMU samples
-  EXPECT_EQ(t.front(), 7 * kMs);
-  EXPECT_EQ(t.back(), 7 * kMs + 20 * kMs);
+  EXPECT_EQ(t.front(), 7 * kNsPerMs);
+  EXPECT_EQ(t.back(), 7 * kNsPerMs + 20 * kNsPerMs);
 }
 
 TEST(RepeatSource, EmptyStreamEndsInsteadOfLooping) {

@@ -15,7 +15,7 @@ using Eigen::VectorXd;
 
 const Layout kPose = Layout::euclidean(3).then_quaternion();
 
-VectorXd pose_vector(const math::Pose& T) {
+VectorXd pose_state(const math::Pose& T) {
   VectorXd x(7);
   x << T.p, math::quat_to_wxyz(T.q);
   return x;
@@ -42,7 +42,7 @@ TEST(AbsolutePosition, JacobianMatchesNumeric) {
       Eigen::Matrix<double, 3, 6> J;
       absolute_position(T_WR, l, &J);
       const auto f = [&](const VectorXd& x) -> VectorXd { return absolute_position(pose_of(x), l); };
-      EXPECT_TRUE(test::check_jacobian("J_z_TWR", f, pose_vector(T_WR), J, kPose, Layout::euclidean(3)));
+      EXPECT_TRUE(test::check_jacobian("J_z_TWR", f, pose_state(T_WR), J, kPose, Layout::euclidean(3)));
     }
   }
 }
@@ -55,8 +55,8 @@ TEST(AbsolutePose, JacobianMatchesNumeric) {
       Eigen::Matrix<double, 6, 6> J;
       const math::Pose T_WM = absolute_pose(T_WR, T_RM, &J);
       EXPECT_TRUE(T_WM.p.isApprox(T_WR.transform(l), 1e-12) || T_WM.p.norm() < 1e-12);
-      const auto f = [&](const VectorXd& x) -> VectorXd { return pose_vector(absolute_pose(pose_of(x), T_RM)); };
-      EXPECT_TRUE(test::check_jacobian("J_TWM_TWR", f, pose_vector(T_WR), J, kPose, kPose));
+      const auto f = [&](const VectorXd& x) -> VectorXd { return pose_state(absolute_pose(pose_of(x), T_RM)); };
+      EXPECT_TRUE(test::check_jacobian("J_TWM_TWR", f, pose_state(T_WR), J, kPose, kPose));
     }
   }
 }
@@ -73,7 +73,7 @@ TEST(AbsolutePose, InnovationIsZeroAtThePredictionAndItsJacobianMatchesNumeric) 
       const Eigen::Matrix<double, 6, 1> y = pose_innovation(z, h, &J);
       EXPECT_TRUE(y.tail<3>().isApprox(r, 1e-9) || r.norm() < 1e-12);
       const auto f = [&](const VectorXd& x) -> VectorXd { return pose_innovation(z, pose_of(x)); };
-      EXPECT_TRUE(test::check_jacobian("J_y_h", f, pose_vector(h), J, kPose, Layout::euclidean(6)));
+      EXPECT_TRUE(test::check_jacobian("J_y_h", f, pose_state(h), J, kPose, Layout::euclidean(6)));
     }
   }
 }

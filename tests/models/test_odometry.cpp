@@ -29,7 +29,7 @@ Vector7d make_state(const Vector3d& p, const Quaterniond& q) {
 }
 
 // Identity, near-identity (series branch of Exp), rotation by π, random poses.
-std::vector<Vector7d> sample_states() {
+std::vector<Vector7d> sample_odometry_states() {
   Rng rng(17);
   std::vector<Vector7d> out;
   out.push_back(make_state(Vector3d::Zero(), Quaterniond::Identity()));
@@ -52,7 +52,7 @@ std::vector<OdometryIncrement> sample_inputs() {
 }
 
 TEST(Odometry, StateJacobianMatchesNumeric) {
-  for (const Vector7d& x : sample_states()) {
+  for (const Vector7d& x : sample_odometry_states()) {
     for (const OdometryIncrement& u : sample_inputs()) {
       Vector7d xo;
       Matrix6d F;
@@ -68,7 +68,7 @@ TEST(Odometry, StateJacobianMatchesNumeric) {
 }
 
 TEST(Odometry, InputJacobianMatchesNumeric) {
-  for (const Vector7d& x : sample_states()) {
+  for (const Vector7d& x : sample_odometry_states()) {
     for (const OdometryIncrement& u : sample_inputs()) {
       Vector7d xo;
       Matrix6d G;
@@ -86,7 +86,7 @@ TEST(Odometry, InputJacobianMatchesNumeric) {
 }
 
 TEST(Odometry, MotionComposesThePoseWithTheIncrement) {
-  const Vector7d x = sample_states()[4];
+  const Vector7d x = sample_odometry_states()[4];
   const OdometryIncrement u = sample_inputs()[5];
   Vector7d xo;
   odometry_predict(x, u, xo);
@@ -117,7 +117,7 @@ TEST(Odometry, NoiseSplitsWithTheIncrement) {
 
 TEST(Odometry, SplitIncrementApproachesTheWhole) {
   // Two halves of a small constant-twist increment end where the whole does, to first order in |dθ||dp|.
-  const Vector7d x = sample_states()[3];
+  const Vector7d x = sample_odometry_states()[3];
   const OdometryIncrement u{Vector3d(0.05, 0.01, 0.0), Vector3d(0.0, 0.0, 0.02), 0.02};
   Vector7d whole, half;
   odometry_predict(x, u, whole);

@@ -47,18 +47,18 @@ class FaultInjector final : public io::Source {
   bool imu_burst_;
 };
 
-struct Outcome {
+struct RecoveryOutcome {
   ImageSlamResult r;
   TimeNs fault_from = 0, fault_to = 0;
 };
 
-Outcome run_with_fault(bool imu_burst) {
+RecoveryOutcome run_with_fault(bool imu_burst) {
   ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
   o.sim_preset = "handheld";
   o.sim_duration_s = 12.0;
   io::Dataset ds = make_sim_dataset(o);
   const TimeNs t0 = ds.ground_truth->poses.front().t;
-  Outcome out;
+  RecoveryOutcome out;
   out.fault_from = t0 + from_seconds(6.0);
   out.fault_to = t0 + from_seconds(imu_burst ? 6.2 : 8.0);
   auto injector = std::make_unique<FaultInjector>(std::move(ds.source), out.fault_from, out.fault_to, imu_burst);
@@ -83,7 +83,7 @@ TimeNs tracking_since(const ImageSlamResult& r, int min_updated) {
 }
 
 TEST(HealthRecovery, ACorruptedImuBurstIsDetectedAndTrackingResumesWithinOneSecond) {
-  const Outcome o = run_with_fault(true);
+  const RecoveryOutcome o = run_with_fault(true);
   const auto& frames = o.r.frames;
   const auto reset = std::find_if(frames.begin(), frames.end(), [](const slam::FrameStats& f) { return f.reset; });
   ASSERT_NE(reset, frames.end()) << "the divergence was not detected";
@@ -102,7 +102,7 @@ TEST(HealthRecovery, ACorruptedImuBurstIsDetectedAndTrackingResumesWithinOneSeco
 }
 
 TEST(HealthRecovery, ATwoSecondImageBlackoutIsNotedAndTrackingResumesWithinOneSecond) {
-  const Outcome o = run_with_fault(false);
+  const RecoveryOutcome o = run_with_fault(false);
   const auto& frames = o.r.frames;
   EXPECT_EQ(o.r.frame_gaps, 1);
   const auto back = std::find_if(frames.begin(), frames.end(), [&](const slam::FrameStats& f) { return f.t > o.fault_to; });

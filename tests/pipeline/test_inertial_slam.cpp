@@ -29,7 +29,7 @@
 namespace rtslam::pipeline {
 namespace {
 
-const std::string kEuroc = RTSLAM_SOURCE_DIR "/../shared/datasets/euroc-v101-static";
+const std::string kEurocStatic = RTSLAM_SOURCE_DIR "/../shared/datasets/euroc-v101-static";
 const std::string kFollow = RTSLAM_SOURCE_DIR "/../shared/datasets/euroc-groundtruth";
 
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
@@ -49,9 +49,9 @@ const StampedPose& closest(const Trajectory& gt, TimeNs t) {
 // by up to 0.17° between images with the vibration). At standstill the accelerometer bias and the tilt cannot be told
 // apart (a horizontal bias b tilts the estimate by b/9.81 rad; V1_01's is 0.07 m/s², 0.4°): the bound is 1°.
 TEST(InertialSlam, EurocStandstillStartsAtRestStaysPutAndFindsGravity) {
-  if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
+  if (!std::filesystem::exists(kEurocStatic)) GTEST_SKIP() << "dataset " << kEurocStatic << " not found";
   ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
-  io::Dataset ds = io::open_dataset("euroc:" + kEuroc);
+  io::Dataset ds = io::open_dataset("euroc:" + kEurocStatic);
   const Trajectory gt = *ds.ground_truth;
   ds.ground_truth.reset();  // the run sees the sensors only
   Eigen::Vector3d g_R_sum = Eigen::Vector3d::Zero(), g_R_gt_sum = Eigen::Vector3d::Zero();
@@ -86,11 +86,11 @@ TEST(InertialSlam, EurocStandstillStartsAtRestStaysPutAndFindsGravity) {
 // frames at those moments, when the updates pause): 1.22 mm with, 2.75 mm without. The option stays off in the
 // presets; the figures, also against the ground truth, are printed.
 TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
-  if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
+  if (!std::filesystem::exists(kEurocStatic)) GTEST_SKIP() << "dataset " << kEurocStatic << " not found";
   const auto run = [](bool zupt) {
     ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
     o.zero_velocity.enabled = zupt;
-    io::Dataset ds = io::open_dataset("euroc:" + kEuroc);
+    io::Dataset ds = io::open_dataset("euroc:" + kEurocStatic);
     ds.ground_truth.reset();
     return run_image_slam(ds, o);
   };
@@ -98,7 +98,7 @@ TEST(InertialSlam, EurocStandstillZeroVelocityUpdatesHappenAndHoldTheVelocity) {
   // The evaluation's reference, read after the runs: the MAV itself moves by ~1.5 mm as the rotors spin up (the
   // ground truth's displacement from its first pose reaches 1.6 mm), so the drift is the estimate's displacement from
   // its first pose against the ground truth's, in the ground truth's frame (the bodies coincide at the first pose).
-  const Trajectory gt = *io::open_dataset("euroc:" + kEuroc).ground_truth;
+  const Trajectory gt = *io::open_dataset("euroc:" + kEurocStatic).ground_truth;
   const auto drift_vs_gt = [&gt](const ImageSlamResult& r) {
     const StampedPose& e0 = r.estimate.poses.front();
     const StampedPose& g0 = closest(gt, e0.t);

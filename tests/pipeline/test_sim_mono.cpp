@@ -18,7 +18,7 @@
 namespace rtslam::pipeline {
 namespace {
 
-const std::string kConfig = RTSLAM_SOURCE_DIR "/config/sim_mono.yaml";
+const std::string kSimMonoConfig = RTSLAM_SOURCE_DIR "/config/sim_mono.yaml";
 
 struct Outcome {
   double ate_m = 0.0;
@@ -29,7 +29,7 @@ struct Outcome {
 };
 
 Outcome run_sim(std::uint64_t seed, double duration_s) {
-  ImageSlamOptions o = load_image_slam_config(kConfig);
+  ImageSlamOptions o = load_image_slam_config(kSimMonoConfig);
   o.seed = seed;
   o.sim_duration_s = duration_s;
   io::Dataset ds = make_sim_dataset(o);

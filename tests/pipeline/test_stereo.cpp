@@ -15,7 +15,7 @@
 namespace rtslam::pipeline {
 namespace {
 
-const std::string kEuroc = RTSLAM_SOURCE_DIR "/../shared/datasets/euroc-v101-static";
+const std::string kStereoEuroc = RTSLAM_SOURCE_DIR "/../shared/datasets/euroc-v101-static";
 
 TEST(Stereo, SimulatedStereoKnowsTheScaleWithoutAnImu) {
   ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/sim_stereo.yaml");
@@ -52,13 +52,13 @@ TEST(Stereo, SimulatedStereoKnowsTheScaleWithoutAnImu) {
 }
 
 TEST(Stereo, EurocStandstillInStereo) {
-  if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
+  if (!std::filesystem::exists(kStereoEuroc)) GTEST_SKIP() << "dataset " << kStereoEuroc << " not found";
   ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_stereo.yaml");
   io::DatasetOptions dopt;
   dopt.use_imu = false;
   dopt.cameras = o.camera_indices();
   dopt.bad_input = io::BadInputPolicy::Skip;  // cam1/data.csv lists 4 images its folder does not hold
-  io::Dataset ds = io::open_dataset("euroc:" + kEuroc, dopt);
+  io::Dataset ds = io::open_dataset("euroc:" + kStereoEuroc, dopt);
   const ImageSlamResult r = run_image_slam(ds, o.on_selected_cameras());
   ASSERT_EQ(r.estimate.poses.size(), 95u);
   double max_dp = 0.0;

@@ -19,7 +19,7 @@
 namespace rtslam::pipeline {
 namespace {
 
-const std::string kConfig = RTSLAM_SOURCE_DIR "/config/sim_mono.yaml";
+const std::string kTwoRobotsConfig = RTSLAM_SOURCE_DIR "/config/sim_mono.yaml";
 
 struct RobotData {
   std::shared_ptr<const sim::Simulation> sim;
@@ -54,7 +54,7 @@ struct Collector final : slam::Observer {
 
 // Runs the robots of `sims` in one map (one robot: alone) and returns each one's estimate.
 std::vector<Trajectory> run(const std::vector<std::shared_ptr<const sim::Simulation>>& sims) {
-  ImageSlamOptions o = load_image_slam_config(kConfig);
+  ImageSlamOptions o = load_image_slam_config(kTwoRobotsConfig);
   o.robot = "odometry";
   std::vector<RobotData> robots(sims.size());
   std::vector<BuildContext> contexts;

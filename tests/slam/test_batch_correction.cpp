@@ -15,7 +15,7 @@
 namespace rtslam::slam {
 namespace {
 
-models::CameraIntrinsics camera() {
+models::CameraIntrinsics vga_camera() {
   models::CameraIntrinsics c;
   c.width = 640;
   c.height = 480;
@@ -35,13 +35,13 @@ struct Scene {
   std::vector<Observation*> obs;
   Scene() {
     auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
-    sensor = &robot->add_sensor(std::make_unique<PinholeSensor>("cam", camera(), math::Pose::identity()));
+    sensor = &robot->add_sensor(std::make_unique<PinholeSensor>("cam", vga_camera(), math::Pose::identity()));
     Eigen::VectorXd x = Eigen::VectorXd::Zero(13);
     x[3] = 1.0;
     Eigen::MatrixXd P = Eigen::MatrixXd::Zero(12, 12);
     P.bottomRightCorner<6, 6>() = 0.04 * Eigen::MatrixXd::Identity(6, 6);
     Robot& r = map.add_robot(std::move(robot), x, P, 0);
-    const models::PinholeCamera cam(camera());
+    const models::PinholeCamera cam(vga_camera());
     for (const auto& p : points) {
       Eigen::Vector2d z;
       EXPECT_TRUE(cam.project(p, z));

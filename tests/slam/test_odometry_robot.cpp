@@ -11,29 +11,11 @@
 #include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
+#include "slam/system_doubles.hpp"
 
 namespace rtslam::slam {
 namespace {
 
-constexpr TimeNs kMs = 1'000'000;
-
-struct Blob final : RawData {};
-
-class CountingDataManager final : public DataManager {
- public:
-  void process(Map&, Sensor&, const RawData& raw, long, FrameStats& stats) override {
-    times.push_back(raw.t);
-    stats.updated = 10;
-  }
-  std::string name() const override { return "counting"; }
-  std::vector<TimeNs> times;
-};
-
-class NoMapManager final : public MapManager {
- public:
-  bool has_room(const Map&, int) const override { return true; }
-  void manage(Map&, const Sensor&, long, FrameStats&) override {}
-};
 
 // Starts at the first datum offered, at the origin with zero covariance.
 class OriginStarter final : public RobotStarter {
@@ -83,7 +65,7 @@ struct OdometryRig {
   void odometry(TimeNs t, double dp, double dyaw) {
     auto d = system->spare<OdometryData>();
     d->t = t;
-    d->t_from = t - 10 * kMs;
+    d->t_from = t - 10 * kNsPerMs;
     d->sensor_id = input_id;
     d->dp = Eigen::Vector3d(dp, 0.0, 0.0);
     d->dtheta = Eigen::Vector3d(0.0, 0.0, dyaw);
@@ -99,21 +81,21 @@ struct OdometryRig {
 
 TEST(OdometryRobot, DataWaitUntilTheIncrementsCoverThem) {
   OdometryRig rig;
-  rig.odometry(10 * kMs, 0.01, 0.0);
-  rig.image(15 * kMs);
+  rig.odometry(10 * kNsPerMs, 0.01, 0.0);
+  rig.image(15 * kNsPerMs);
   EXPECT_EQ(rig.system->pending(), 1u);
   EXPECT_TRUE(rig.dm->times.empty());
-  rig.odometry(20 * kMs, 0.01, 0.0);
+  rig.odometry(20 * kNsPerMs, 0.01, 0.0);
   EXPECT_EQ(rig.system->pending(), 0u);
-  EXPECT_EQ(rig.dm->times, std::vector<TimeNs>{15 * kMs});
+  EXPECT_EQ(rig.dm->times, std::vector<TimeNs>{15 * kNsPerMs});
 }
 
 TEST(OdometryRobot, StraddlingIncrementsAreSplitInProportionOfTime) {
   OdometryRig rig;
-  for (TimeNs t = 10 * kMs; t <= 30 * kMs; t += 10 * kMs) rig.odometry(t, 0.01, 0.02);
-  rig.image(25 * kMs);  // the start, inside (20, 30]: its last half is applied from the start on
-  for (TimeNs t = 40 * kMs; t <= 60 * kMs; t += 10 * kMs) rig.odometry(t, 0.01, 0.02);
-  rig.image(55 * kMs);
+  for (TimeNs t = 10 * kNsPerMs; t <= 30 * kNsPerMs; t += 10 * kNsPerMs) rig.odometry(t, 0.01, 0.02);
+  rig.image(25 * kNsPerMs);  // the start, inside (20, 30]: its last half is applied from the start on
+  for (TimeNs t = 40 * kNsPerMs; t <= 60 * kNsPerMs; t += 10 * kNsPerMs) rig.odometry(t, 0.01, 0.02);
+  rig.image(55 * kNsPerMs);
   ASSERT_EQ(rig.dm->times.size(), 2u);
   // From 25 to 55 ms: three increments' worth, 0.03 m and 0.06 rad, along an arc.
   const math::Pose T = rig.robot->pose();
@@ -136,19 +118,19 @@ TEST(OdometryRobot, StraddlingIncrementsAreSplitInProportionOfTime) {
 
 TEST(OdometryRobot, BrokenInputStreamsAreRefused) {
   OdometryRig rig;
-  rig.odometry(10 * kMs, 0.01, 0.0);
+  rig.odometry(10 * kNsPerMs, 0.01, 0.0);
   auto overlapping = rig.system->spare<OdometryData>();
-  overlapping->t = 15 * kMs;
-  overlapping->t_from = 5 * kMs;
+  overlapping->t = 15 * kNsPerMs;
+  overlapping->t_from = 5 * kNsPerMs;
   overlapping->sensor_id = rig.input_id;
-  rig.image(8 * kMs);  // starts the robot
+  rig.image(8 * kNsPerMs);  // starts the robot
   EXPECT_THROW(rig.system->feed(std::move(overlapping)), DataError);
   auto imu = rig.system->spare<ImuData>();
-  imu->t = 30 * kMs;
+  imu->t = 30 * kNsPerMs;
   imu->sensor_id = rig.input_id;
   EXPECT_THROW(rig.system->feed(std::move(imu)), DataError);
-  rig.odometry(30 * kMs, 0.01, 0.0);  // (20, 30]: the gap (10, 20] is no motion
-  rig.image(25 * kMs);
+  rig.odometry(30 * kNsPerMs, 0.01, 0.0);  // (20, 30]: the gap (10, 20] is no motion
+  rig.image(25 * kNsPerMs);
   EXPECT_NEAR(rig.robot->pose().p.x(), 0.002 + 0.005, 1e-12);  // (8, 10] and (20, 25]
 }
 

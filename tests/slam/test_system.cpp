@@ -7,11 +7,12 @@
 #include "rtslam/slam/absolute_sensor.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
+#include "slam/system_doubles.hpp"
 
 namespace rtslam::slam {
 namespace {
 
-models::CameraIntrinsics test_camera() {
+models::CameraIntrinsics system_camera() {
   models::CameraIntrinsics c;
   c.width = 640;
   c.height = 480;
@@ -20,31 +21,6 @@ models::CameraIntrinsics test_camera() {
   c.cy = 240.0;
   return c;
 }
-
-struct Blob final : RawData {
-  int value = 0;
-  bool released = false;
-  void release() override { released = true; }
-};
-
-class CountingDataManager final : public DataManager {
- public:
-  void process(Map&, Sensor&, const RawData& raw, long frame, FrameStats& stats) override {
-    times.push_back(raw.t);
-    frames.push_back(frame);
-    stats.updated = updated;
-  }
-  std::string name() const override { return "counting"; }
-  std::vector<TimeNs> times;
-  std::vector<long> frames;
-  int updated = 10;
-};
-
-class NoMapManager final : public MapManager {
- public:
-  bool has_room(const Map&, int) const override { return true; }
-  void manage(Map&, const Sensor&, long, FrameStats&) override {}
-};
 
 // Starts at the `start_at`-th offered datum, replaying the data it held since the first offer (as a
 // visual-inertial start replays its window); the held copies are its own.
@@ -102,7 +78,6 @@ struct Recorder final : Observer {
   int resets = 0;
 };
 
-constexpr TimeNs kMs = 1'000'000;
 
 struct InertialRig {
   World world;
@@ -119,7 +94,7 @@ struct InertialRig {
     map = &world.add_map();
     system = std::make_unique<System>(world, *map, std::make_unique<NoMapManager>(), so);
     auto robot = std::make_unique<InertialRobot>(models::InertialParams{});
-    camera = &robot->add_sensor(std::make_unique<PinholeSensor>("cam0", test_camera(), math::Pose{}));
+    camera = &robot->add_sensor(std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
     auto dm_ptr = std::make_unique<CountingDataManager>();
     dm = dm_ptr.get();
     camera->set_data_manager(std::move(dm_ptr));
@@ -170,14 +145,15 @@ TEST(System, SensorsHaveIdsBeforeTheRobotIsInTheMapAndInputsTheirOwn) {
 
 TEST(System, ImagesWaitUntilTheImuCoversThemThenGoThroughTheStarterAndTheFilterInOrder) {
   InertialRig rig(/*start_at=*/3);
-  for (int k = 0; k <= 10; ++k) rig.imu(k * 5 * kMs);  // IMU up to 50 ms
-  rig.image(40 * kMs);
-  rig.image(60 * kMs);  // not covered yet
-  rig.image(80 * kMs);
+  for (int k = 0; k <= 10; ++k) rig.imu(k * 5 * kNsPerMs);  // IMU up to 50 ms
+  rig.image(40 * kNsPerMs);
+  rig.image(60 * kNsPerMs);  // not covered yet
+  rig.image(80 * kNsPerMs);
   EXPECT_EQ(rig.starter->offers, 1);
   EXPECT_EQ(rig.system->pending(), 2u);
   EXPECT_TRUE(rig.map->robots().empty());
-  for (int k = 11; k <= 16; ++k) rig.imu(k * 5 * kMs);  // to 80 ms: both covered (an input at the image time first)
+  // to 80 ms: both covered (an input at the image time first)
+  for (int k = 11; k <= 16; ++k) rig.imu(k * 5 * kNsPerMs);
   EXPECT_EQ(rig.system->pending(), 0u);
   EXPECT_EQ(rig.starter->offers, 3);
   EXPECT_EQ(rig.starter->first_starts, 1);
@@ -185,15 +161,15 @@ TEST(System, ImagesWaitUntilTheImuCoversThemThenGoThroughTheStarterAndTheFilterI
   ASSERT_EQ(rig.map->robots().size(), 1u);
   // The start is at the window's first image; its three images are processed in order.
   ASSERT_EQ(rig.recorder.starts.size(), 1u);
-  EXPECT_EQ(rig.recorder.starts[0], 40 * kMs);
-  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{40 * kMs, 60 * kMs, 80 * kMs}));
+  EXPECT_EQ(rig.recorder.starts[0], 40 * kNsPerMs);
+  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{40 * kNsPerMs, 60 * kNsPerMs, 80 * kNsPerMs}));
   EXPECT_EQ(rig.recorder.indices, (std::vector<long>{0, 1, 2}));
   EXPECT_EQ(rig.system->steps(), 3);
-  EXPECT_EQ(rig.map->robots()[0]->time(), 80 * kMs);
+  EXPECT_EQ(rig.map->robots()[0]->time(), 80 * kNsPerMs);
   // After the start every image goes straight to the filter once covered.
-  rig.imu(85 * kMs);
-  rig.image(85 * kMs);
-  EXPECT_EQ(rig.dm->times.back(), 85 * kMs);
+  rig.imu(85 * kNsPerMs);
+  rig.image(85 * kNsPerMs);
+  EXPECT_EQ(rig.dm->times.back(), 85 * kNsPerMs);
   EXPECT_EQ(rig.starter->offers, 3);
 }
 
@@ -202,30 +178,30 @@ TEST(System, ImagesWaitUntilTheImuCoversThemThenGoThroughTheStarterAndTheFilterI
 // by their data manager in time order and reported, but are no frame of their own (the frame index counts images).
 TEST(System, AbsoluteFixesBeforeTheStartAreSkippedAndAfterItAreNoFrames) {
   InertialRig rig(/*start_at=*/2, {}, /*with_gps=*/true);
-  for (int k = 0; k <= 10; ++k) rig.imu(k * 5 * kMs);  // IMU up to 50 ms
-  rig.fix(10 * kMs);
-  rig.image(20 * kMs);
-  rig.fix(30 * kMs);
+  for (int k = 0; k <= 10; ++k) rig.imu(k * 5 * kNsPerMs);  // IMU up to 50 ms
+  rig.fix(10 * kNsPerMs);
+  rig.image(20 * kNsPerMs);
+  rig.fix(30 * kNsPerMs);
   EXPECT_EQ(rig.starter->offers, 1);  // the image only
   EXPECT_TRUE(rig.map->robots().empty());
-  rig.image(40 * kMs);  // the start, at 20 ms, replays both images and no fix
+  rig.image(40 * kNsPerMs);  // the start, at 20 ms, replays both images and no fix
   ASSERT_EQ(rig.map->robots().size(), 1u);
   EXPECT_EQ(rig.starter->offers, 2);
-  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{20 * kMs, 40 * kMs}));
+  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{20 * kNsPerMs, 40 * kNsPerMs}));
   EXPECT_TRUE(rig.gps_dm->times.empty());
-  rig.fix(45 * kMs);
-  rig.image(50 * kMs);
-  rig.fix(60 * kMs);  // not covered by the IMU yet: held
+  rig.fix(45 * kNsPerMs);
+  rig.image(50 * kNsPerMs);
+  rig.fix(60 * kNsPerMs);  // not covered by the IMU yet: held
   EXPECT_EQ(rig.system->pending(), 1u);
-  EXPECT_EQ(rig.gps_dm->times, (std::vector<TimeNs>{45 * kMs}));
-  for (int k = 11; k <= 13; ++k) rig.imu(k * 5 * kMs);
-  rig.image(65 * kMs);
+  EXPECT_EQ(rig.gps_dm->times, (std::vector<TimeNs>{45 * kNsPerMs}));
+  for (int k = 11; k <= 13; ++k) rig.imu(k * 5 * kNsPerMs);
+  rig.image(65 * kNsPerMs);
   EXPECT_EQ(rig.system->pending(), 0u);
-  EXPECT_EQ(rig.gps_dm->times, (std::vector<TimeNs>{45 * kMs, 60 * kMs}));
-  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{20 * kMs, 40 * kMs, 50 * kMs, 65 * kMs}));
+  EXPECT_EQ(rig.gps_dm->times, (std::vector<TimeNs>{45 * kNsPerMs, 60 * kNsPerMs}));
+  EXPECT_EQ(rig.dm->times, (std::vector<TimeNs>{20 * kNsPerMs, 40 * kNsPerMs, 50 * kNsPerMs, 65 * kNsPerMs}));
   EXPECT_EQ(rig.dm->frames, (std::vector<long>{0, 1, 2, 3}));  // images keep consecutive frame numbers
-  EXPECT_EQ(rig.recorder.times,
-            (std::vector<TimeNs>{20 * kMs, 40 * kMs, 45 * kMs, 50 * kMs, 60 * kMs, 65 * kMs}));
+  EXPECT_EQ(rig.recorder.times, (std::vector<TimeNs>{20 * kNsPerMs, 40 * kNsPerMs, 45 * kNsPerMs, 50 * kNsPerMs,
+                                                     60 * kNsPerMs, 65 * kNsPerMs}));
   EXPECT_EQ(rig.recorder.landmark_frame, (std::vector<bool>{true, true, false, true, false, true}));
   EXPECT_EQ(rig.starter->offers, 2);
   EXPECT_EQ(rig.recorder.resets, 0);
@@ -249,8 +225,8 @@ TEST(System, FedObjectsAreReusedAndReleased) {
 TEST(System, BrokenStreamsAreErrors) {
   {
     InertialRig rig(1);
-    rig.imu(10 * kMs);
-    EXPECT_THROW(rig.imu(10 * kMs), DataError);  // not after the previous input
+    rig.imu(10 * kNsPerMs);
+    EXPECT_THROW(rig.imu(10 * kNsPerMs), DataError);  // not after the previous input
   }
   {
     InertialRig rig(1);
@@ -262,9 +238,9 @@ TEST(System, BrokenStreamsAreErrors) {
     SystemOptions so;
     so.max_pending = 5;
     InertialRig rig(1, so);
-    for (int k = 0; k < 5; ++k) rig.image(k * kMs);  // no IMU at all: everything waits
+    for (int k = 0; k < 5; ++k) rig.image(k * kNsPerMs);  // no IMU at all: everything waits
     EXPECT_EQ(rig.system->pending(), 5u);
-    EXPECT_THROW(rig.image(6 * kMs), DataError);
+    EXPECT_THROW(rig.image(6 * kNsPerMs), DataError);
   }
 }
 
@@ -272,8 +248,8 @@ TEST(System, MaxStepsStopsTheFilter) {
   SystemOptions so;
   so.max_steps = 2;
   InertialRig rig(1, so);
-  for (int k = 0; k <= 20; ++k) rig.imu(k * 5 * kMs);
-  for (int k = 0; k < 5; ++k) rig.image(k * 20 * kMs);
+  for (int k = 0; k <= 20; ++k) rig.imu(k * 5 * kNsPerMs);
+  for (int k = 0; k < 5; ++k) rig.image(k * 20 * kNsPerMs);
   EXPECT_EQ(rig.system->steps(), 2);
   EXPECT_TRUE(rig.system->finished());
   EXPECT_EQ(rig.dm->times.size(), 2u);
@@ -285,14 +261,14 @@ TEST(System, AHealthVerdictResetsTheMapAndRestartsTheRobotAtItsLastHealthyPose) 
   so.health.lost_after_s = 0.05;
   so.health.min_updated = 3;
   InertialRig rig(1, so);
-  for (int k = 0; k <= 100; ++k) rig.imu(k * 5 * kMs);  // 0.5 s
+  for (int k = 0; k <= 100; ++k) rig.imu(k * 5 * kNsPerMs);  // 0.5 s
   rig.image(0);
-  rig.image(20 * kMs);
+  rig.image(20 * kNsPerMs);
   ASSERT_EQ(rig.map->robots().size(), 1u);
   const Robot& robot = *rig.map->robots()[0];
   const Eigen::Vector3d p_healthy = robot.pose().p;
   rig.dm->updated = 0;  // tracking collapses: no correction any more
-  for (int k = 2; k < 10 && rig.recorder.resets == 0; ++k) rig.image(k * 20 * kMs);
+  for (int k = 2; k < 10 && rig.recorder.resets == 0; ++k) rig.image(k * 20 * kNsPerMs);
   ASSERT_EQ(rig.recorder.resets, 1);
   EXPECT_EQ(rig.starter->restart_calls, 1);
   EXPECT_EQ(rig.system->counts(0).resets, 1);
@@ -305,7 +281,7 @@ TEST(System, AHealthVerdictResetsTheMapAndRestartsTheRobotAtItsLastHealthyPose) 
   elsewhere.head<3>() << 5.0, 0.0, 0.0;  // where the starter alone would put the robot
   rig.starter->set_x0(elsewhere);
   const int offers = rig.starter->offers;
-  rig.image(300 * kMs);
+  rig.image(300 * kNsPerMs);
   EXPECT_EQ(rig.starter->offers, offers + 1);
   EXPECT_EQ(rig.starter->restarts_seen, 1);
   EXPECT_EQ(rig.map->robots().size(), 1u);
@@ -317,19 +293,19 @@ TEST(System, RobotsWithoutInputsProcessAtOnce) {
   Map& map = world.add_map();
   System system(world, map, std::make_unique<NoMapManager>());
   auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
-  Sensor& cam = robot->add_sensor(std::make_unique<PinholeSensor>("cam0", test_camera(), math::Pose{}));
+  Sensor& cam = robot->add_sensor(std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
   auto dm = std::make_unique<CountingDataManager>();
   CountingDataManager& counting = *dm;
   cam.set_data_manager(std::move(dm));
   const int input = system.add_robot(std::move(robot), std::make_unique<WindowStarter>(1, 13, 12));
   auto d = system.spare<Blob>();
-  d->t = 5 * kMs;
+  d->t = 5 * kNsPerMs;
   d->sensor_id = cam.id();
   system.feed(std::move(d));
-  EXPECT_EQ(counting.times, std::vector<TimeNs>{5 * kMs});
+  EXPECT_EQ(counting.times, std::vector<TimeNs>{5 * kNsPerMs});
   EXPECT_EQ(system.pending(), 0u);
   auto imu = system.spare<ImuData>();
-  imu->t = 6 * kMs;
+  imu->t = 6 * kNsPerMs;
   imu->sensor_id = input;
   EXPECT_THROW(system.feed(std::move(imu)), DataError);  // a constant-velocity robot takes no input
 }

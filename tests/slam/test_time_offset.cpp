@@ -20,7 +20,7 @@ using Eigen::MatrixXd;
 using Eigen::Vector3d;
 using Eigen::VectorXd;
 
-models::CameraIntrinsics camera() {
+models::CameraIntrinsics offset_camera() {
   models::CameraIntrinsics c;
   c.width = 752;
   c.height = 480;
@@ -33,7 +33,7 @@ models::CameraIntrinsics camera() {
 }
 
 // A moving, turning robot with biases and gravity off the axes.
-VectorXd inertial_state() {
+VectorXd offset_inertial_state() {
   VectorXd x = VectorXd::Zero(19);
   x.head<3>() << 0.3, -0.2, 1.1;
   x.segment<4>(3) = math::quat_to_wxyz(math::exp_so3(Vector3d(0.2, -0.4, 0.3)));
@@ -55,7 +55,7 @@ models::ImuMeasurement reading(int k) {
 
 constexpr TimeNs kImuPeriod = 5'000'000;
 
-struct Scene {
+struct OffsetScene {
   World world;
   Map* map = nullptr;
   InertialRobot* robot = nullptr;
@@ -64,14 +64,14 @@ struct Scene {
   // An inertial robot at t = 0 with IMU samples over [0, 0.1] s, a camera with estimated extrinsics and time offset,
   // an AHP landmark and a Euclidean one.
   // With constant_rate, the gyro reads reading(0)'s rate throughout (the mean rate of pose_rate is the reading).
-  explicit Scene(int nullspace_dim = 0, bool extrinsics = true, bool constant_rate = false) {
+  explicit OffsetScene(int nullspace_dim = 0, bool extrinsics = true, bool constant_rate = false) {
     filter::StateOptions so;
     so.nullspace_dim = nullspace_dim;
     map = &world.add_map(so);
     auto owned = std::make_unique<InertialRobot>(models::InertialParams{});
     robot = owned.get();
     sensor = &owned->add_sensor(std::make_unique<PinholeSensor>(
-        "cam", camera(), math::Pose{math::exp_so3(Vector3d(0.1, -0.2, 0.05)), Vector3d(0.05, -0.02, 0.01)}));
+        "cam", offset_camera(), math::Pose{math::exp_so3(Vector3d(0.1, -0.2, 0.05)), Vector3d(0.05, -0.02, 0.01)}));
     if (extrinsics) sensor->estimate_extrinsics(1e-4 * Eigen::Matrix<double, 6, 6>::Identity());
     sensor->estimate_time_offset(25e-6, 0.05);
     for (int k = 0; k <= 20; ++k) {
@@ -79,7 +79,7 @@ struct Scene {
       if (constant_rate) m.gyro = reading(0).gyro;
       owned->add_imu(k * kImuPeriod, m);
     }
-    map->add_robot(std::move(owned), inertial_state(), 1e-3 * MatrixXd::Identity(18, 18), 0);
+    map->add_robot(std::move(owned), offset_inertial_state(), 1e-3 * MatrixXd::Identity(18, 18), 0);
   }
   void add_landmarks() {
     Landmark* ahp = init_ahp_landmark(*map, *sensor, {300, 200}, 1.0, models::AhpPrior{}, 0);
@@ -92,7 +92,7 @@ struct Scene {
 };
 
 TEST(TimeOffset, TheBlockStartsAtZeroWithItsPriorAndZeroBasisRows) {
-  Scene s(Robot::kNullspaceDim);
+  OffsetScene s(Robot::kNullspaceDim);
   const filter::State& st = s.map->state();
   ASSERT_NE(s.sensor->time_block(), filter::kNoBlock);
   EXPECT_EQ(st.block(s.sensor->time_block()).tangent_size(), 1);
@@ -102,7 +102,7 @@ TEST(TimeOffset, TheBlockStartsAtZeroWithItsPriorAndZeroBasisRows) {
 }
 
 TEST(TimeOffset, ShiftIsTheEstimateClampedToItsRange) {
-  Scene s;
+  OffsetScene s;
   filter::State& st = s.map->state();
   st.mean(s.sensor->time_block())[0] = 0.0123;
   EXPECT_EQ(s.sensor->time_shift(st.mean_vector()), 12'300'000);
@@ -112,7 +112,7 @@ TEST(TimeOffset, ShiftIsTheEstimateClampedToItsRange) {
 
 TEST(TimeOffset, PoseRateIsTheVelocityAndTheMeanRateOfTheLastPrediction) {
   // After predict_to(t0), predict_to(t1) (t1 − t0 >= 10 ms): ω is the rotation increment over [t0, t1] divided by its length, v the derivative of the position at t1.
-  Scene s;
+  OffsetScene s;
   Eigen::Matrix<double, 6, 1> xi;
   const TimeNs t0 = 12'000'000, t1 = 37'000'000, eps = 200'000;
   ASSERT_TRUE(s.robot->predict_to(t0));
@@ -131,7 +131,7 @@ TEST(TimeOffset, PoseRateIsTheVelocityAndTheMeanRateOfTheLastPrediction) {
 // Every column of H at δt_d = the applied shift (where each frame is linearized: the System predicts the robot to
 // the stamp plus the estimate), against central differences of h over every involved block.
 TEST(TimeOffset, ObservationJacobianMatchesNumeric) {
-  Scene s;
+  OffsetScene s;
   ASSERT_TRUE(s.robot->predict_to(43'000'000));
   s.add_landmarks();
   filter::State& st = s.map->state();
@@ -178,12 +178,12 @@ TEST(TimeOffset, ObservationJacobianMatchesNumeric) {
 TEST(TimeOffset, TimeColumnIsThePixelVelocityUnderTheImuPrediction) {
   const TimeNs t = 61'000'000, eps = 100'000;
   for (int k = 0; k < 2; ++k) {
-    Scene a(0, false, true), b(0, false, true);
+    OffsetScene a(0, false, true), b(0, false, true);
     ASSERT_TRUE(a.robot->predict_to(t - eps));
     ASSERT_TRUE(b.robot->predict_to(t - eps));
     a.add_landmarks();
     b.add_landmarks();
-    Scene c(0, false, true);  // the linearization at t
+    OffsetScene c(0, false, true);  // the linearization at t
     ASSERT_TRUE(c.robot->predict_to(t - eps));
     c.add_landmarks();
     ASSERT_TRUE(c.robot->predict_to(t));
@@ -202,7 +202,7 @@ TEST(TimeOffset, TimeColumnIsThePixelVelocityUnderTheImuPrediction) {
 }
 
 TEST(TimeOffset, ConstrainedJacobianAnnihilatesTheBasisWithTheTimeBlock) {
-  Scene s(Robot::kNullspaceDim);
+  OffsetScene s(Robot::kNullspaceDim);
   ASSERT_TRUE(s.robot->predict_to(43'000'000));
   s.add_landmarks();
   filter::State& st = s.map->state();

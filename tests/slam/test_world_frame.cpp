@@ -26,7 +26,7 @@ using Eigen::Vector3d;
 using Eigen::VectorXd;
 using I = models::InertialIndex;
 
-models::CameraIntrinsics camera() {
+models::CameraIntrinsics frame_camera() {
   models::CameraIntrinsics c;
   c.width = 752;
   c.height = 480;
@@ -49,7 +49,7 @@ struct TestMap {
     map = &world.add_map(so);
     auto r = std::make_unique<InertialRobot>(models::InertialParams{});
     cam = &r->add_sensor(std::make_unique<PinholeSensor>(
-        "cam", camera(), math::Pose{math::exp_so3(Vector3d(0.1, -0.2, 0.05)), Vector3d(0.05, -0.02, 0.01)}));
+        "cam", frame_camera(), math::Pose{math::exp_so3(Vector3d(0.1, -0.2, 0.05)), Vector3d(0.05, -0.02, 0.01)}));
     cam->estimate_extrinsics(1e-4 * Eigen::Matrix<double, 6, 6>::Identity());
     models::Vector19d x;
     x << 0.4, -1.2, 1.1,
@@ -219,7 +219,7 @@ TEST(WorldFrame, MovesAnOdometryRobot) {
   World world;
   Map& map = world.add_map(filter::StateOptions{});
   auto r = std::make_unique<OdometryRobot>(models::OdometryParams{});
-  Sensor& cam = r->add_sensor(std::make_unique<PinholeSensor>("cam", camera(), math::Pose{}));
+  Sensor& cam = r->add_sensor(std::make_unique<PinholeSensor>("cam", frame_camera(), math::Pose{}));
   VectorXd x(7);
   x << 0.4, -1.2, 1.1,
       math::quat_to_wxyz(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Vector3d(1, -2, 3).normalized())));

@@ -10,6 +10,7 @@ namespace rtslam {
 using TimeNs = std::int64_t;
 
 constexpr TimeNs kNsPerSecond = 1'000'000'000;
+constexpr TimeNs kNsPerMs = 1'000'000;
 
 /// Nanoseconds -> seconds (for I/O and for dt in models).
 constexpr double to_seconds(TimeNs t) { return static_cast<double>(t) * 1e-9; }

@@ -307,6 +307,23 @@ TEST(State, FullStateRefusesNewBlocksAndRecoversAfterRemoval) {
   EXPECT_EQ(s.tangent_used(), 7);
 }
 
+// A map that several robots join grows its storage by each one's rows before the run (pipeline/builder.hpp).
+TEST(State, ReserveGrowsAnEmptyStateAndRefusesOnceItHoldsBlocks) {
+  State s(StateOptions{.tangent_capacity = 10});
+  s.reserve(5);  // smaller: nothing changes
+  EXPECT_EQ(s.tangent_capacity(), 10);
+  s.reserve(20);
+  EXPECT_EQ(s.tangent_capacity(), 20);
+  const auto a = s.add_block(BlockLayout::euclidean(7), VectorXd::Ones(7), MatrixXd::Identity(7, 7));
+  const auto b = s.add_block(BlockLayout::euclidean(7), VectorXd::Ones(7), MatrixXd::Identity(7, 7));
+  ASSERT_TRUE(a.has_value() && b.has_value());
+  EXPECT_FALSE(s.add_block(BlockLayout::euclidean(7), VectorXd::Zero(7), MatrixXd::Identity(7, 7)).has_value());
+  EXPECT_THROW(s.reserve(40), InvariantError);
+  EXPECT_EQ(s.tangent_capacity(), 20);
+  EXPECT_EQ(s.tangent_used(), 14);
+  EXPECT_THROW(State(StateOptions{.tangent_capacity = 10}).reserve(StateOptions::kMaxTangentCapacity + 1), ConfigError);
+}
+
 }  // namespace
 }  // namespace rtslam::filter
 

@@ -240,6 +240,34 @@ TEST(MapSize, IsNeverExceededOverARandomizedRun) {
   }
 }
 
+// map_size is a budget per robot: a second robot in the map (several robots in one world) doubles the rows its
+// landmarks may take, so that each robot keeps as many landmarks as alone.
+TEST(MapSize, IsABudgetPerRobotInTheMap) {
+  StrategyRig rig(filter::StateOptions{.tangent_capacity = 200});
+  MapPolicyOptions o;
+  o.map_size = robot_rows(rig) + 7 * 5;
+  o.evict_rows = 0;
+  PolicyMapManager mm{o};
+  auto fill = [&] {
+    int added = 0;
+    for (int k = 0; mm.has_room(*rig.map, 7) && k < 100; ++k) {
+      EXPECT_NE(rig.place({100.0 + k, 120.0}, 0), nullptr);
+      ++added;
+    }
+    return added;
+  };
+  EXPECT_EQ(mm.limit(*rig.map), o.map_size);
+  EXPECT_EQ(fill(), 5);
+  auto r2 = std::make_unique<slam::ConstantVelocityRobot>(models::ConstantVelocityParams{});
+  r2->add_sensor(std::make_unique<slam::PinholeSensor>("cam2", testing::rig_camera(), math::Pose::identity()));
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
+  x0.segment<4>(3) = math::quat_to_wxyz(Eigen::Quaterniond::Identity());
+  rig.map->add_robot(std::move(r2), x0, Eigen::MatrixXd::Zero(12, 12), 0);
+  EXPECT_EQ(mm.limit(*rig.map), 2 * o.map_size);
+  EXPECT_EQ(fill(), 5);  // the second robot's own budget: its block and five more landmarks
+  EXPECT_EQ(rig.map->state().tangent_used(), 2 * o.map_size);
+}
+
 // has_room is what the data manager asks before each initialization: with a small map_size, a run of the active
 // search over a textured image fills the map up to the limit and not beyond.
 TEST(MapSize, TheDataManagerHonoursHasRoom) {

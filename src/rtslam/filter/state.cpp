@@ -94,6 +94,18 @@ State::State(StateOptions options)
   nz_block_.resize(static_cast<size_t>(options.tangent_capacity));
 }
 
+void State::reserve(int tangent_capacity) {
+  if (tangent_capacity <= options_.tangent_capacity) return;
+  RTSLAM_CHECK(used_blocks_ == 0, "State::reserve: the state already holds blocks (grow it before adding any)");
+  StateOptions o = options_;
+  if (o.ambient_capacity > 0) {
+    o.ambient_capacity = static_cast<int>((static_cast<std::int64_t>(o.ambient_capacity) * tangent_capacity +
+                                           o.tangent_capacity - 1) / o.tangent_capacity);
+  }
+  o.tangent_capacity = tangent_capacity;
+  *this = State(o);  // validates before anything changes
+}
+
 bool State::can_allocate(const BlockLayout& layout) const {
   return tangent_alloc_.largest_free() >= layout.tangent_size() &&
          ambient_alloc_.largest_free() >= layout.ambient_size();

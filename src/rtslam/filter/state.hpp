@@ -114,6 +114,11 @@ class State {
   int tangent_used() const { return tangent_alloc_.capacity() - tangent_alloc_.free_total(); }
   int tangent_capacity() const { return tangent_alloc_.capacity(); }
   bool can_allocate(const BlockLayout& layout) const;
+  /// Grows the storage to `tangent_capacity` covariance rows (nothing when it has as many), the ambient capacity in
+  /// proportion. Only while the state holds no block: storage is allocated before the run, as at construction (a
+  /// map that several robots join grows by each one's rows: pipeline/builder.hpp). ConfigError beyond
+  /// kMaxTangentCapacity.
+  void reserve(int tangent_capacity);
 
   // --- access ---------------------------------------------------------------------------------------------
   Eigen::VectorBlock<VectorXd> mean(BlockId id);

@@ -177,6 +177,16 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
                                       o.cameras.empty() ? "" : "s", k, c.dataset, c.rig.cameras.size()));
       }
     }
+    // Rows per robot: the map's storage grows by this robot's slam/state_capacity, as the map manager's budget
+    // grows by map_manager/map_size with each robot in the map (strategies/map_policies.hpp). The storage is
+    // allocated before the run: every robot joins before data are fed (robots enter the map at their start).
+    filter::State& state = b.map->state();
+    if (state.block_count() > 0) {
+      throw ConfigError(fmt::format("robot of '{}': add every robot before feeding data (the map already holds {} "
+                                    "state blocks; its storage grows by slam/state_capacity with each robot)",
+                                    c.dataset, state.block_count()));
+    }
+    state.reserve(state.tangent_capacity() + o.state_capacity);
   }
   // Each robot's data managers draw from their own streams (the first robot keeps the single-robot seeds).
   const std::uint64_t robot_seed = dm_seed(o) + 15485863 * static_cast<std::uint64_t>(b.robots.size());

@@ -91,7 +91,9 @@ class Registry {
   /// keys), its cameras from context.rig, its start from context.initial_state. Several robots in one world: the
   /// map's landmarks are shared (a landmark one robot's camera initialized is searched and corrected in every
   /// other camera), and every robot is predicted to each datum's time. For a common world frame, give each robot
-  /// its start pose in it (a known start: initial_state with zero covariance for the first, the gauge).
+  /// its start pose in it (a known start: initial_state with zero covariance for the first, the gauge). The map's
+  /// rows are per robot: its storage grows by the robot's slam/state_capacity and the policy map manager's budget
+  /// is map_manager/map_size per robot in the map. Every robot is added before data are fed (ConfigError after).
   BuiltRobot add_robot_to(BuiltSystem& built, const BuildContext& context) const;
 
  private:

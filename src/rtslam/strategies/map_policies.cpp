@@ -42,8 +42,12 @@ PolicyMapManager::PolicyMapManager(MapPolicyOptions options) : opt_(options) {
   logger_ = logger("map");
 }
 
+int PolicyMapManager::limit(const slam::Map& map) const {
+  return opt_.map_size * static_cast<int>(std::max<std::size_t>(1, map.robots().size()));
+}
+
 bool PolicyMapManager::has_room(const slam::Map& map, int tangent_size) const {
-  return map.state().tangent_used() + tangent_size <= opt_.map_size &&
+  return map.state().tangent_used() + tangent_size <= limit(map) &&
          map.state().can_allocate(filter::BlockLayout::euclidean(tangent_size));
 }
 
@@ -92,7 +96,7 @@ void PolicyMapManager::manage(slam::Map& map, const slam::Sensor& sensor, long f
       if (slam::reparametrize_to_euclidean(map, *l)) ++stats.reparametrized;
     }
   }
-  if (opt_.evict_when_full && map.state().tangent_used() + opt_.evict_rows > opt_.map_size) {
+  if (opt_.evict_when_full && map.state().tangent_used() + opt_.evict_rows > limit(map)) {
     evict(map, sensor, frame, stats);
   }
   if (logger_->should_log(spdlog::level::debug)) {
@@ -119,7 +123,7 @@ void PolicyMapManager::evict(slam::Map& map, const slam::Sensor& /*sensor*/, lon
     return a.first != b.first ? a.first < b.first : a.second->id() < b.second->id();
   });
   for (const auto& [last_visible, l] : candidates_) {
-    if (map.state().tangent_used() + opt_.evict_rows <= opt_.map_size) break;
+    if (map.state().tangent_used() + opt_.evict_rows <= limit(map)) break;
     map.remove_landmark(*l);
     ++stats.removed;
     ++stats.evicted;

@@ -15,7 +15,10 @@
 // are free, the landmarks out of view the longest (not visible for at least `evict_min_unseen_frames`; ties: the
 // lower id) are dropped until `evict_rows` rows are free again, or no such landmark is left.
 // The map size counts covariance rows ("state entries", as RT-SLAM's MAP_SIZE): an AHP point takes 7, a
-// Euclidean point 3, the robot its own. The counters judged are those of the sensor `manage` is called for (one
+// Euclidean point 3, the robot its own. It is a budget per robot: a map that k robots share (several robots in one
+// world, Registry::add_robot_to) holds k × map_size rows, so that each robot keeps as many landmarks as alone (one
+// budget for all would halve each robot's map: in the two-robot test the landmarks in each camera's view fell from
+// 60-66 to 36-42 and both robots' errors rose above their errors alone). The counters judged are those of the sensor `manage` is called for (one
 // camera per map in the pipelines).
 #include <memory>
 
@@ -29,7 +32,7 @@ namespace rtslam::strategies {
 struct MapPolicyOptions {
   enum class Policy { Global, VisualOdometry };
   Policy policy = Policy::Global;
-  int map_size = 500;                 // covariance rows (state entries) for landmarks + robots
+  int map_size = 500;                 // covariance rows (state entries) for landmarks + robot, per robot in the map
   static constexpr int kMaxMapSize = 10000;  // = filter::StateOptions::kMaxTangentCapacity
   double reparam_threshold = 0.1;     // RT-SLAM REPARAM_TH: convert AHP when the linearity index is below
   int min_searches_to_judge = 10;     // before judging the match ratio
@@ -49,6 +52,8 @@ class PolicyMapManager final : public slam::MapManager {
   bool has_room(const slam::Map& map, int tangent_size) const override;
   void manage(slam::Map& map, const slam::Sensor& sensor, long frame, slam::FrameStats& stats) override;
   const MapPolicyOptions& options() const { return opt_; }
+  /// The map's row budget: map_size per robot in the map (at least one).
+  int limit(const slam::Map& map) const;
 
  private:
   MapPolicyOptions opt_;

@@ -18,8 +18,8 @@
 // Euclidean point 3, the robot its own. It is a budget per robot: a map that k robots share (several robots in one
 // world, Registry::add_robot_to) holds k × map_size rows, so that each robot keeps as many landmarks as alone (one
 // budget for all would halve each robot's map: in the two-robot test the landmarks in each camera's view fell from
-// 60-66 to 36-42 and both robots' errors rose above their errors alone). The counters judged are those of the sensor `manage` is called for (one
-// camera per map in the pipelines).
+// 60-66 to 36-42 and both robots' errors rose above their errors alone). The counters judged are those of the
+// sensor `manage` is called for (one camera per map in the pipelines).
 #include <memory>
 
 #include <spdlog/logger.h>

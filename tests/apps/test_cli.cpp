@@ -24,6 +24,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "support/temp_dir.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -52,12 +54,7 @@ std::string read_file(const fs::path& p) {
   return s.str();
 }
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("rtslam_test_cli_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+fs::path temp_dir(const std::string& name) { return ::rtslam::support::fresh_temp_dir("test_cli", name); }
 
 int count_lines(const std::string& s) {
   int n = 0;

@@ -13,17 +13,13 @@
 #include <unistd.h>
 
 #include "rtslam/eval/process.hpp"
+#include "support/temp_dir.hpp"
 
 namespace rtslam::eval::test {
 
 namespace fs = std::filesystem;
 
-inline fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / fmt::format("rtslam_cli_{}_{}", name, ::getpid());
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+inline fs::path temp_dir(const std::string& name) { return ::rtslam::support::fresh_temp_dir("cli", name); }
 
 inline nlohmann::json read_json(const fs::path& p) {
   std::ifstream in(p);

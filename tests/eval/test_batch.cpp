@@ -11,6 +11,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/eval/batch.hpp"
 #include "rtslam/eval/process.hpp"
+#include "support/temp_dir.hpp"
 
 using namespace rtslam;
 using namespace rtslam::eval;
@@ -18,11 +19,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / fmt::format("rtslam_batch_{}_{}", name, ::getpid());
-  fs::remove_all(d);
-  return d;
-}
+fs::path temp_dir(const std::string& name) { return ::rtslam::support::fresh_temp_dir("batch", name, false); }
 
 BatchOptions fake_options(const fs::path& dir, int n_seeds) {
   BatchOptions o;

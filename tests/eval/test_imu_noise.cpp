@@ -11,6 +11,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/eval/imu_noise.hpp"
+#include "support/temp_dir.hpp"
 
 using namespace rtslam;
 using namespace rtslam::eval;
@@ -118,10 +119,7 @@ Recording make_recording(const RecordingOptions& o) {
 }
 
 std::filesystem::path imu_noise_dir(const std::string& name) {
-  const auto d = std::filesystem::temp_directory_path() / fmt::format("rtslam_imu_noise_{}_{}", name, ::getpid());
-  std::filesystem::remove_all(d);
-  std::filesystem::create_directories(d);
-  return d;
+  return ::rtslam::support::fresh_temp_dir("imu_noise", name);
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include "rtslam/eval/batch.hpp"
 #include "rtslam/eval/process.hpp"
 #include "rtslam/eval/report.hpp"
+#include "support/temp_dir.hpp"
 
 using namespace rtslam;
 using namespace rtslam::eval;
@@ -19,12 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path report_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / fmt::format("rtslam_report_{}_{}", name, ::getpid());
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+fs::path report_dir(const std::string& name) { return ::rtslam::support::fresh_temp_dir("report", name); }
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p);

@@ -11,18 +11,14 @@
 #include "eval/fake_run.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/eval/run_eval.hpp"
+#include "support/temp_dir.hpp"
 
 using namespace rtslam;
 using namespace rtslam::eval;
 namespace fs = std::filesystem;
 
 namespace {
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / fmt::format("rtslam_eval_{}_{}", name, ::getpid());
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+fs::path temp_dir(const std::string& name) { return ::rtslam::support::fresh_temp_dir("eval", name); }
 }  // namespace
 
 TEST(RunEval, ConsistentSimulatedRunHasSmallErrorAndNeesNearSix) {

@@ -7,6 +7,8 @@
 #include <fstream>
 #include <string>
 
+#include "support/temp_dir.hpp"
+
 namespace rtslam::io::test {
 
 /// A fresh directory under the system temp dir, removed at the end of the test.
@@ -14,11 +16,7 @@ class TempDir {
  public:
   TempDir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string name = std::string("rtslam_io_") + info->test_suite_name() + "_" + info->name() + "_" +
-                             std::to_string(::getpid());
-    path_ = std::filesystem::temp_directory_path() / name;
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
+    path_ = ::rtslam::support::fresh_temp_dir("io", std::string(info->test_suite_name()) + "_" + info->name());
   }
   ~TempDir() {
     std::error_code ec;

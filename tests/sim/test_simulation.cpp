@@ -18,17 +18,14 @@
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/sim/simulation.hpp"
+#include "support/temp_dir.hpp"
 
 namespace rtslam::sim {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("rtslam_test_sim_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(p);
-  return p;
-}
+fs::path temp_dir(const std::string& name) { return ::rtslam::support::fresh_temp_dir("test_sim", name, false); }
 
 std::string read_bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

@@ -12,6 +12,7 @@
 #include "rtslam/viz/overlay.hpp"
 #include "rtslam/viz/replay.hpp"
 #include "viz/viz_test_utils.hpp"
+#include "support/temp_dir.hpp"
 
 namespace {
 
@@ -21,12 +22,7 @@ using namespace rtslam::viz;
 using test::black_at;
 using test::colour_near;
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("rtslam_test_viz_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+fs::path temp_dir(const std::string& name) { return ::rtslam::support::fresh_temp_dir("test_viz", name); }
 
 OverlayOptions plain() {
   OverlayOptions o;

@@ -231,9 +231,9 @@ std::string decode_problem(const std::vector<unsigned char>& b) {
 }
 
 /// A little-endian TIFF: 8-bit grey, `width` x `height`, `rows_per_strip` rows a strip, one strip of 8 bytes; with
-/// a TileWidth tag too when `tile_width` is not 0.
+/// a TileWidth tag too when `tile_width` is not 0, of TIFF type `tile_type` (3 SHORT, 4 LONG, 8 SSHORT...).
 std::vector<unsigned char> tiff(std::uint32_t width, std::uint32_t height, std::uint32_t rows_per_strip,
-                                std::uint32_t tile_width = 0) {
+                                std::uint32_t tile_width = 0, std::uint32_t tile_type = 4) {
   std::vector<unsigned char> b = {'I', 'I', 42, 0, 8, 0, 0, 0};
   const auto u16 = [&b](std::uint32_t v) {
     b.push_back(v & 0xFF);
@@ -250,10 +250,18 @@ std::vector<unsigned char> tiff(std::uint32_t width, std::uint32_t height, std::
   if (tile_width) entries.emplace_back(322, tile_width);
   u16(static_cast<std::uint32_t>(entries.size()));
   for (const auto& [tag, value] : entries) {
+    const std::uint32_t type = tag == 322 ? tile_type : 4;  // LONG but for the TileWidth
     u16(tag);
-    u16(4);  // LONG
+    u16(type);
     u32(1);
-    u32(value);
+    if (type == 4 || type == 9) {
+      u32(value);
+    } else if (type == 3 || type == 8) {
+      u16(value);  // inline, left-justified in the 4 bytes
+      u16(0);
+    } else {
+      u32(value & 0xFF);  // BYTE / SBYTE: the first byte
+    }
   }
   u32(0);  // no next directory
   for (int i = 0; i < 8; ++i) b.push_back(static_cast<unsigned char>(i * 30));
@@ -298,6 +306,13 @@ TEST(FuzzRegressions, HugeDeclaredImagesAreRefusedBeforeDecoding) {
   // fuzz_image_decode, 10-minute run: a TileWidth without TileLength makes libtiff read tiles of RowsPerStrip
   // rows, so OpenCV's buffer was 18761 x 16392 RGBA px (1.2 GB) for a 32x247 image the header check passed.
   EXPECT_NE(decode_problem(tiff(32, 247, 16392, 18761)).find("strips or tiles hold 307530312 px"),
+            std::string::npos);
+  // Fuzzing, 26 Nov: the same with the TileWidth typed SSHORT, which the header check skipped and libtiff reads.
+  EXPECT_NE(decode_problem(tiff(32, 247, 16392, 18761, 8)).find("strips or tiles hold 307530312 px"),
+            std::string::npos);
+  EXPECT_NE(decode_problem(tiff(32, 247, 16392, 18761, 3)).find("strips or tiles hold 307530312 px"),
+            std::string::npos);
+  EXPECT_NE(decode_problem(tiff(32, 247, 200000, 255, 1)).find("strips or tiles hold 51000000 px"),
             std::string::npos);
   // The same TIFF with sane strips decodes.
   std::string why;

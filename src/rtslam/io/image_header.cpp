@@ -133,17 +133,35 @@ std::optional<ImageHeader> tiff(Bytes b) {
     const std::size_t e = ifd + 2 + 12 * static_cast<std::size_t>(i);
     std::uint32_t tag = 0, type = 0, count = 0;
     if (!b.u16(e, tag) || !b.u16(e + 2, type) || !b.u32(e + 4, count)) return {};
+    // Every integer type libtiff converts for these tags (a TileWidth typed SSHORT is a tile width to it). The first
+    // value counts; a signed one is read as its bit pattern, so a negative value only looks larger (and is refused).
+    std::size_t width_bytes = 0;
+    switch (type) {
+      case 1: case 6: width_bytes = 1; break;    // BYTE, SBYTE
+      case 3: case 8: width_bytes = 2; break;    // SHORT, SSHORT
+      case 4: case 9: width_bytes = 4; break;    // LONG, SLONG
+      case 16: case 17: width_bytes = 8; break;  // LONG8, SLONG8 (BigTIFF types; libtiff reads them here too)
+      default: continue;
+    }
+    std::size_t at = e + 8;  // inline when the values fit in the entry's 4 bytes, else at the offset stored there
+    if (width_bytes * count > 4) {
+      std::uint32_t offset = 0;
+      if (!b.u32(e + 8, offset)) return {};
+      at = offset;
+    }
     std::uint32_t value = 0;
-    if (type == 3) {  // SHORT: inline when count <= 2, else at the offset (the first value is the one read)
-      std::uint32_t at = 0;
-      if (count > 2 && !b.u32(e + 8, at)) return {};
-      if (!b.u16(count > 2 ? at : e + 8, value)) return {};
-    } else if (type == 4) {  // LONG: inline when count == 1
-      std::uint32_t at = 0;
-      if (count > 1 && !b.u32(e + 8, at)) return {};
-      if (!b.u32(count > 1 ? at : e + 8, value)) return {};
+    if (width_bytes == 1) {
+      if (!b.has(at, 1)) return {};
+      value = b.data[at];
+    } else if (width_bytes == 2) {
+      if (!b.u16(at, value)) return {};
+    } else if (width_bytes == 4) {
+      if (!b.u32(at, value)) return {};
     } else {
-      continue;
+      // Saturated below 2^32 - 1 (which means "one strip" for RowsPerStrip): anything that large is refused.
+      std::uint32_t first = 0, second = 0;
+      if (!b.u32(at, first) || !b.u32(at + 4, second)) return {};
+      value = (b.big_endian ? first : second) != 0 ? 0xFFFFFFFEu : (b.big_endian ? second : first);
     }
     switch (tag) {
       case 256: width = std::max(width, value); break;

@@ -135,14 +135,13 @@ std::optional<ImageHeader> tiff(Bytes b) {
     if (!b.u16(e, tag) || !b.u16(e + 2, type) || !b.u32(e + 4, count)) return {};
     // Every integer type libtiff converts for these tags (a TileWidth typed SSHORT is a tile width to it). The first
     // value counts; a signed one is read as its bit pattern, so a negative value only looks larger (and is refused).
-    std::size_t width_bytes = 0;
-    switch (type) {
-      case 1: case 6: width_bytes = 1; break;    // BYTE, SBYTE
-      case 3: case 8: width_bytes = 2; break;    // SHORT, SSHORT
-      case 4: case 9: width_bytes = 4; break;    // LONG, SLONG
-      case 16: case 17: width_bytes = 8; break;  // LONG8, SLONG8 (BigTIFF types; libtiff reads them here too)
-      default: continue;
-    }
+    // BYTE 1, SHORT 3, LONG 4, SBYTE 6, SSHORT 8, SLONG 9, LONG8 16, SLONG8 17 (BigTIFF's, read here by libtiff too).
+    const std::size_t width_bytes = type == 1 || type == 6     ? 1
+                                    : type == 3 || type == 8   ? 2
+                                    : type == 4 || type == 9   ? 4
+                                    : type == 16 || type == 17 ? 8
+                                                               : 0;
+    if (width_bytes == 0) continue;
     std::size_t at = e + 8;  // inline when the values fit in the entry's 4 bytes, else at the offset stored there
     if (width_bytes * count > 4) {
       std::uint32_t offset = 0;
@@ -164,14 +163,29 @@ std::optional<ImageHeader> tiff(Bytes b) {
       value = (b.big_endian ? first : second) != 0 ? 0xFFFFFFFEu : (b.big_endian ? second : first);
     }
     switch (tag) {
-      case 256: width = std::max(width, value); break;
-      case 257: height = std::max(height, value); break;
-      case 258: bps = std::max(bps, value); break;
-      case 277: spp = std::max(spp, value); break;
-      case 278: rows_per_strip.push_back(value); break;
-      case 322: tile_w = std::max(tile_w, value); break;
-      case 323: tile_h = std::max(tile_h, value); break;
-      default: break;
+      case 256:
+        width = std::max(width, value);
+        break;
+      case 257:
+        height = std::max(height, value);
+        break;
+      case 258:
+        bps = std::max(bps, value);
+        break;
+      case 277:
+        spp = std::max(spp, value);
+        break;
+      case 278:
+        rows_per_strip.push_back(value);
+        break;
+      case 322:
+        tile_w = std::max(tile_w, value);
+        break;
+      case 323:
+        tile_h = std::max(tile_h, value);
+        break;
+      default:
+        break;
     }
   }
   auto h = sized(ImageFormat::Tiff, width, height);
@@ -228,11 +242,16 @@ std::string image_header_problem(const ImageHeader& h) {
 
 std::string to_string(ImageFormat format) {
   switch (format) {
-    case ImageFormat::Png: return "PNG";
-    case ImageFormat::Pnm: return "PNM";
-    case ImageFormat::Jpeg: return "JPEG";
-    case ImageFormat::Bmp: return "BMP";
-    case ImageFormat::Tiff: return "TIFF";
+    case ImageFormat::Png:
+      return "PNG";
+    case ImageFormat::Pnm:
+      return "PNM";
+    case ImageFormat::Jpeg:
+      return "JPEG";
+    case ImageFormat::Bmp:
+      return "BMP";
+    case ImageFormat::Tiff:
+      return "TIFF";
   }
   return "unknown";
 }

@@ -239,5 +239,14 @@ TEST(Prefetch, StartPrefetchPicksTheWayAndZeroIsOff) {
   EXPECT_GE(default_prefetch_threads(), 0);
 }
 
+TEST(Prefetch, DefaultLeavesTheFilterItsOwnCore) {
+  EXPECT_EQ(default_prefetch_threads(0), 0);  // unknown
+  EXPECT_EQ(default_prefetch_threads(1), 0);
+  EXPECT_EQ(default_prefetch_threads(2), 1);
+  EXPECT_EQ(default_prefetch_threads(3), 2);
+  EXPECT_EQ(default_prefetch_threads(5), 4);
+  EXPECT_EQ(default_prefetch_threads(64), 4);
+}
+
 }  // namespace
 }  // namespace rtslam::io

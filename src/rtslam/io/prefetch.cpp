@@ -8,10 +8,11 @@
 
 namespace rtslam::io {
 
-int default_prefetch_threads() {
-  const unsigned n = std::thread::hardware_concurrency();
-  return n > 1 ? static_cast<int>(std::min(n, 4u)) : 0;
+int default_prefetch_threads(unsigned hardware_threads) {
+  return hardware_threads > 1 ? static_cast<int>(std::min(hardware_threads - 1, 4u)) : 0;
 }
+
+int default_prefetch_threads() { return default_prefetch_threads(std::thread::hardware_concurrency()); }
 
 // ------------------------------------------------------------------------------------------------ DecodeAhead
 

@@ -227,11 +227,14 @@ void BM_PredictAppearance31To15(benchmark::State& state) {
   const Eigen::Vector3d p_W(0.1, 0.05, 2.0);
   const Eigen::Vector2d c0(175.0, 127.5);
   Image out(15, 15);
+  int outside = 0;
   for (auto _ : state) {
     const WarpResult r = predict_appearance(init, c0, K, T0, T1, p_W, out.mutable_view());
+    outside = r.n_outside;
     benchmark::DoNotOptimize(r);
     benchmark::ClobberMemory();
   }
+  state.counters["outside_px"] = outside;
 }
 BENCHMARK(BM_PredictAppearance31To15)->Unit(benchmark::kMicrosecond);
 

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 
 #include <Eigen/Geometry>
 
@@ -9,8 +11,8 @@
 #include "vision_test_utils.hpp"
 
 using namespace rtslam::vision;
-using rtslam::Rng;
 using rtslam::randu;
+using rtslam::Rng;
 
 namespace {
 
@@ -77,8 +79,8 @@ TEST(Warp, HomographyMapsPointsOfTheFrontoParallelPlaneBetweenViews) {
   for (int trial = 0; trial < 50; ++trial) {
     const Eigen::Vector3d p_W(randu(rng, -1, 1), randu(rng, -1, 1), randu(rng, 2, 6));
     const RigidPose T0 = looking_at(rtslam::randn_vec<3>(rng, 0.3), p_W, randu(rng, -3, 3));
-    const RigidPose T1 = looking_at(rtslam::randn_vec<3>(rng, 0.5), p_W + rtslam::randn_vec<3>(rng, 0.2),
-                                    randu(rng, -3, 3));
+    const RigidPose T1 =
+        looking_at(rtslam::randn_vec<3>(rng, 0.5), p_W + rtslam::randn_vec<3>(rng, 0.2), randu(rng, -3, 3));
     Eigen::Matrix3d H;
     ASSERT_TRUE(plane_homography(kK, T0, T1, p_W, &H));
     // Points of the plane through p_W orthogonal to the viewing ray of C0.
@@ -143,7 +145,7 @@ TEST(Warp, PredictedAppearanceMatchesAfter30DegreesRollAndScale1_5) {
   ZnccMatcher exhaustive(best_anywhere);
   int n_pred_ok = 0, n_plain_ok = 0, n = 0;
   for (const Eigen::Vector3d& p_W : {Eigen::Vector3d(0.12, -0.08, 2), Eigen::Vector3d(-0.1, 0.06, 2),
-                                    Eigen::Vector3d(0.02, 0.1, 2), Eigen::Vector3d(-0.14, -0.1, 2)}) {
+                                     Eigen::Vector3d(0.02, 0.1, 2), Eigen::Vector3d(-0.14, -0.1, 2)}) {
     const Eigen::Vector2d c0 = project_test(kK, T0, p_W);
     const Eigen::Vector2d c1 = project_test(kK, T1, p_W);
     const Eigen::Vector2i ic0 = c0.array().round().cast<int>();
@@ -151,8 +153,7 @@ TEST(Warp, PredictedAppearanceMatchesAfter30DegreesRollAndScale1_5) {
     ASSERT_TRUE(init.extract(img0, ic0.x(), ic0.y(), 31));
     ASSERT_TRUE(plain.extract(img0, ic0.x(), ic0.y(), 15));
     Image predicted(15, 15);
-    const WarpResult w =
-        predict_appearance(init.view(), ic0.cast<double>(), kK, T0, T1, p_W, predicted.mutable_view());
+    const WarpResult w = predict_appearance(init.view(), ic0.cast<double>(), kK, T0, T1, p_W, predicted.mutable_view());
     ASSERT_TRUE(w.ok);
     EXPECT_EQ(w.n_outside, 0);
     Patch pred;
@@ -198,4 +199,55 @@ TEST(Warp, PointBehindACameraIsRejectedAndIdentityDistortionChangesNothing) {
     for (int u = 0; u < 15; ++u) n_diff += out_zoom.at(u, v) != out_plain.at(u, v);
   EXPECT_GT(n_diff, 50);
   EXPECT_EQ(out_zoom.at(7, 7), out_plain.at(7, 7));  // the centre is the landmark in both
+}
+
+TEST(Warp, EverySimdLevelPredictsTheSameBytes) {
+  // Random views of random points, with and without a local distortion model, patches of several sizes (odd and
+  // even pixel counts, so the AVX2 kernel's groups of four straddle rows and leave a tail), many of them partly
+  // outside the stored patch (its border path) and some with the point behind the current view.
+  Rng rng(11);
+  const Image init = test::random_image(31, 31, rng);
+  const Image init_wide = test::random_image(41, 33, rng);
+  int compared = 0, partly_outside = 0, rejected = 0;
+  for (int trial = 0; trial < 600; ++trial) {
+    const ImageView src = trial % 3 == 0 ? init_wide.view() : init.view();
+    const int n = std::array<int, 4>{15, 9, 7, 5}[trial % 4];
+    const Eigen::Vector3d p_W(randu(rng, -0.5, 0.5), randu(rng, -0.5, 0.5), randu(rng, 1.0, 5.0));
+    const RigidPose T0 = looking_at({randu(rng, -0.2, 0.2), randu(rng, -0.2, 0.2), 0.0}, p_W, randu(rng, -0.3, 0.3));
+    const Eigen::Vector3d eye(randu(rng, -1.5, 1.5), randu(rng, -1.0, 1.0), randu(rng, -1.0, 2.5));
+    const Eigen::Vector3d aim = p_W + Eigen::Vector3d(randu(rng, -0.3, 0.3), randu(rng, -0.3, 0.3), 0.0);
+    const RigidPose T1 = looking_at(eye, trial % 10 == 9 ? 2.0 * eye - aim : aim, randu(rng, -3.0, 3.0));
+    const Eigen::Vector2d c0 = project_test(kK, T0, p_W) + Eigen::Vector2d(randu(rng, -2, 2), randu(rng, -2, 2));
+    LocalDistortion dist;
+    dist.centre0_dist_px = c0 + Eigen::Vector2d(randu(rng, -1, 1), randu(rng, -1, 1));
+    dist.J_dist_undist << randu(rng, 0.8, 1.2), randu(rng, -0.1, 0.1), randu(rng, -0.1, 0.1), randu(rng, 0.8, 1.2);
+    dist.J_dist_undist_0 << randu(rng, 0.8, 1.2), randu(rng, -0.1, 0.1), randu(rng, -0.1, 0.1), randu(rng, 0.8, 1.2);
+    const LocalDistortion* d = trial % 2 ? &dist : nullptr;
+    std::vector<WarpResult> results;
+    std::vector<Image> outs;
+    for (const SimdLevel level : test::simd_levels()) {
+      test::ScopedSimdLevel scoped(level);
+      outs.emplace_back(n, n);
+      results.push_back(predict_appearance(src, c0, kK, T0, T1, p_W, outs.back().mutable_view(), d));
+    }
+    for (size_t k = 1; k < results.size(); ++k) {
+      ASSERT_EQ(results[k].ok, results[0].ok) << "trial " << trial;
+      if (!results[0].ok) continue;
+      ASSERT_EQ(results[k].n_outside, results[0].n_outside) << "trial " << trial;
+      for (int v = 0; v < n; ++v)
+        for (int u = 0; u < n; ++u)
+          ASSERT_EQ(outs[k].at(u, v), outs[0].at(u, v)) << "trial " << trial << " pixel " << u << "," << v;
+    }
+    if (results[0].ok) {
+      ++compared;
+      partly_outside += results[0].n_outside > 0;
+    } else {
+      ++rejected;
+    }
+  }
+  // The draw reaches every path: whole patches inside, partly outside, and rejected views.
+  std::printf("compared %d, partly outside %d, rejected %d\n", compared, partly_outside, rejected);
+  EXPECT_GT(compared - partly_outside, 300);
+  EXPECT_GT(partly_outside, 20);
+  EXPECT_GT(rejected, 30);
 }

@@ -1,8 +1,9 @@
 #pragma once
-// Instruction-set dispatch of the front-end kernels (integral images, Harris, ZNCC).
+// Instruction-set dispatch of the front-end kernels (integral images, Harris, ZNCC, appearance prediction).
 //
-// Each kernel has a plain C++ version and, on x86-64, an SSE2 version (the x86-64 baseline). The integral images and
-// Harris also have an AVX2 version, compiled with __attribute__((target("avx2"))) and chosen at run time, so the build
+// Each kernel has a plain C++ version and, on x86-64, an SSE2 version (the x86-64 baseline; the appearance
+// prediction has none: it runs its plain version there). The integral images, Harris and the appearance prediction
+// also have an AVX2 version, compiled with __attribute__((target("avx2"))) and chosen at run time, so the build
 // needs no -march flag and runs on any x86-64 CPU. Every level gives bit-identical results: the same exact integer
 // sums, then the same sequence of double operations (no FMA).
 // The level is process-wide. It starts at the best level the CPU supports; tests and benchmarks lower it to exercise

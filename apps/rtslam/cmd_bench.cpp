@@ -166,8 +166,8 @@ void run_pipeline_bench(const BenchOptions& bo) {
   std::cout << fmt::format(
       "  throughput: {:.1f} images/s over {:.2f} s wall ({}), filter {:.2f} s, waiting for "
       "input {:.2f} s, process CPU {:.2f} s, load average {:.2f} -> {:.2f} on {} cores\n",
-      fps, wall_s, threads > 0 ? fmt::format("prefetch: {} threads", threads) : "no prefetch", filter_s,
-      source.in_next_s, cpu_s, load_before, load_after, std::thread::hardware_concurrency());
+      fps, wall_s, threads > 0 ? fmt::format("prefetch: {} thread{}", threads, threads == 1 ? "" : "s") : "no prefetch",
+      filter_s, source.in_next_s, cpu_s, load_before, load_after, std::thread::hardware_concurrency());
   // What the machine gives unloaded: the filter thread cannot go faster than its own CPU time, and the whole work
   // cannot go faster than the process CPU time spread over the cores.
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());

@@ -11,8 +11,8 @@
 #include "vision_test_utils.hpp"
 
 using namespace rtslam::vision;
-using rtslam::randu;
 using rtslam::Rng;
+using rtslam::randu;
 
 namespace {
 
@@ -79,8 +79,8 @@ TEST(Warp, HomographyMapsPointsOfTheFrontoParallelPlaneBetweenViews) {
   for (int trial = 0; trial < 50; ++trial) {
     const Eigen::Vector3d p_W(randu(rng, -1, 1), randu(rng, -1, 1), randu(rng, 2, 6));
     const RigidPose T0 = looking_at(rtslam::randn_vec<3>(rng, 0.3), p_W, randu(rng, -3, 3));
-    const RigidPose T1 =
-        looking_at(rtslam::randn_vec<3>(rng, 0.5), p_W + rtslam::randn_vec<3>(rng, 0.2), randu(rng, -3, 3));
+    const RigidPose T1 = looking_at(rtslam::randn_vec<3>(rng, 0.5), p_W + rtslam::randn_vec<3>(rng, 0.2),
+                                    randu(rng, -3, 3));
     Eigen::Matrix3d H;
     ASSERT_TRUE(plane_homography(kK, T0, T1, p_W, &H));
     // Points of the plane through p_W orthogonal to the viewing ray of C0.
@@ -145,7 +145,7 @@ TEST(Warp, PredictedAppearanceMatchesAfter30DegreesRollAndScale1_5) {
   ZnccMatcher exhaustive(best_anywhere);
   int n_pred_ok = 0, n_plain_ok = 0, n = 0;
   for (const Eigen::Vector3d& p_W : {Eigen::Vector3d(0.12, -0.08, 2), Eigen::Vector3d(-0.1, 0.06, 2),
-                                     Eigen::Vector3d(0.02, 0.1, 2), Eigen::Vector3d(-0.14, -0.1, 2)}) {
+                                    Eigen::Vector3d(0.02, 0.1, 2), Eigen::Vector3d(-0.14, -0.1, 2)}) {
     const Eigen::Vector2d c0 = project_test(kK, T0, p_W);
     const Eigen::Vector2d c1 = project_test(kK, T1, p_W);
     const Eigen::Vector2i ic0 = c0.array().round().cast<int>();
@@ -153,7 +153,8 @@ TEST(Warp, PredictedAppearanceMatchesAfter30DegreesRollAndScale1_5) {
     ASSERT_TRUE(init.extract(img0, ic0.x(), ic0.y(), 31));
     ASSERT_TRUE(plain.extract(img0, ic0.x(), ic0.y(), 15));
     Image predicted(15, 15);
-    const WarpResult w = predict_appearance(init.view(), ic0.cast<double>(), kK, T0, T1, p_W, predicted.mutable_view());
+    const WarpResult w =
+        predict_appearance(init.view(), ic0.cast<double>(), kK, T0, T1, p_W, predicted.mutable_view());
     ASSERT_TRUE(w.ok);
     EXPECT_EQ(w.n_outside, 0);
     Patch pred;

@@ -163,29 +163,14 @@ std::optional<ImageHeader> tiff(Bytes b) {
       value = (b.big_endian ? first : second) != 0 ? 0xFFFFFFFEu : (b.big_endian ? second : first);
     }
     switch (tag) {
-      case 256:
-        width = std::max(width, value);
-        break;
-      case 257:
-        height = std::max(height, value);
-        break;
-      case 258:
-        bps = std::max(bps, value);
-        break;
-      case 277:
-        spp = std::max(spp, value);
-        break;
-      case 278:
-        rows_per_strip.push_back(value);
-        break;
-      case 322:
-        tile_w = std::max(tile_w, value);
-        break;
-      case 323:
-        tile_h = std::max(tile_h, value);
-        break;
-      default:
-        break;
+      case 256: width = std::max(width, value); break;
+      case 257: height = std::max(height, value); break;
+      case 258: bps = std::max(bps, value); break;
+      case 277: spp = std::max(spp, value); break;
+      case 278: rows_per_strip.push_back(value); break;
+      case 322: tile_w = std::max(tile_w, value); break;
+      case 323: tile_h = std::max(tile_h, value); break;
+      default: break;
     }
   }
   auto h = sized(ImageFormat::Tiff, width, height);
@@ -242,16 +227,11 @@ std::string image_header_problem(const ImageHeader& h) {
 
 std::string to_string(ImageFormat format) {
   switch (format) {
-    case ImageFormat::Png:
-      return "PNG";
-    case ImageFormat::Pnm:
-      return "PNM";
-    case ImageFormat::Jpeg:
-      return "JPEG";
-    case ImageFormat::Bmp:
-      return "BMP";
-    case ImageFormat::Tiff:
-      return "TIFF";
+    case ImageFormat::Png: return "PNG";
+    case ImageFormat::Pnm: return "PNM";
+    case ImageFormat::Jpeg: return "JPEG";
+    case ImageFormat::Bmp: return "BMP";
+    case ImageFormat::Tiff: return "TIFF";
   }
   return "unknown";
 }

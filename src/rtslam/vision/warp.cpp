@@ -196,9 +196,9 @@ RTSLAM_AVX2 bool warp_avx2(const PixelMap& m, ImageView init_patch, MutableImage
 
 }  // namespace
 
-WarpResult predict_appearance(ImageView init_patch, const Eigen::Vector2d& init_centre_px, const PinholeIntrinsics& K,
-                              const RigidPose& T_WC0, const RigidPose& T_WC, const Eigen::Vector3d& p_W,
-                              MutableImageView out, const LocalDistortion* distortion) {
+WarpResult predict_appearance(ImageView init_patch, const Eigen::Vector2d& init_centre_px,
+                              const PinholeIntrinsics& K, const RigidPose& T_WC0, const RigidPose& T_WC,
+                              const Eigen::Vector3d& p_W, MutableImageView out, const LocalDistortion* distortion) {
   WarpResult res;
   Eigen::Matrix3d H;
   if (init_patch.empty() || out.width <= 0 || out.height <= 0 || !plane_homography(K, T_WC0, T_WC, p_W, &H)) {

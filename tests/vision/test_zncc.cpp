@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -224,6 +225,72 @@ TEST(Zncc, BoundedPartialCorrelationNeverChangesTheResult) {
   std::printf("bounded partial correlation: %d searches, %ld positions, %.1f %% abandoned early\n", n, evaluated,
               100.0 * pruned / evaluated);
   EXPECT_GT(pruned, evaluated / 4);  // it does save work
+}
+
+// The one-point RANSAC pattern (strategies/active_search.cpp): one template searched again and again in small boxes
+// around slightly different predictions, then in an ellipse, sharing a ScoreMemo. Every result must equal the
+// search without the memo, which must compute fewer windows. Smoothed random texture (always available) and, when
+// present, real frames.
+TEST(Zncc, AMemoNeverChangesAResultAndSavesWindows) {
+  Rng rng(31);
+  std::vector<std::pair<Image, Image>> pairs;
+  {
+    const cv::Mat a = test::smooth_texture(160, 120, 1.5, rng);
+    cv::Mat b;
+    const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, 0.4, 0, 1, -0.3);
+    cv::warpAffine(a, b, shift, a.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+    pairs.emplace_back(test::from_mat(a), test::from_mat(b));
+  }
+  const Image f0 = test::load_gray(test::monoslam_frame(120));
+  const Image f1 = test::load_gray(test::monoslam_frame(121));
+  if (!f0.empty() && !f1.empty()) pairs.emplace_back(f0, f1);
+  long with = 0, without = 0, hits_checked = 0;
+  for (const double threshold : {0.9, 0.5, -1.0}) {
+    ZnccOptions o;
+    o.threshold = threshold;
+    o.two_level = false;
+    ZnccMatcher small(o);
+    o.two_level = true;
+    ZnccMatcher full(o);
+    for (const auto& [img0, img1] : pairs) {
+      const int margin = 7 + 12;
+      for (int k = 0; k < 30; ++k) {
+        const int u = static_cast<int>(randu(rng, margin, img0.width() - margin));
+        const int v = static_cast<int>(randu(rng, margin, img0.height() - margin));
+        Patch p;
+        ASSERT_TRUE(p.extract(img0.view(), u, v, 15));
+        if (p.centred_energy() <= 0) continue;
+        for (const int capacity : {128, 4}) {  // 4: a memo that fills up (after 2 entries) must stay correct
+          ScoreMemo memo(capacity);
+          // Boxes on a 5 x 5 grid of offsets up to 3 px in a random order: a later box often lacks the peak an
+          // earlier one held, so its best is a position an earlier search abandoned against a higher floor.
+          std::vector<Eigen::Vector2d> centres;
+          for (const double dy : {-3.0, -1.5, 0.0, 1.5, 3.0})
+            for (const double dx : {-3.0, -1.5, 0.0, 1.5, 3.0}) centres.emplace_back(u + dx, v + dy);
+          std::shuffle(centres.begin(), centres.end(), rng);
+          for (const Eigen::Vector2d& c : centres) {
+            const SearchEllipse box = SearchEllipse::box(c, 1.0, 1.0);
+            const MatchResult a = small.match(p, img1.view(), box);
+            const MatchResult b = small.match(p, img1.view(), box, &memo);
+            ASSERT_TRUE(same_result(a, b)) << "box at " << c.transpose() << " threshold " << threshold;
+            if (capacity == 128) {
+              without += a.n_evaluated;
+              with += b.n_evaluated;
+              ++hits_checked;
+            }
+          }
+          const SearchEllipse e = random_ellipse({u + randu(rng, -3, 3), v + randu(rng, -3, 3)}, rng);
+          for (ZnccMatcher* m : {&small, &full}) {
+            const MatchResult a = m->match(p, img1.view(), e);
+            const MatchResult b = m->match(p, img1.view(), e, &memo);
+            ASSERT_TRUE(same_result(a, b)) << "ellipse, two-level " << m->options().two_level;
+          }
+        }
+      }
+    }
+  }
+  std::printf("memo: %ld searches, %ld windows computed against %ld without\n", hits_checked, with, without);
+  EXPECT_LT(with, 0.7 * static_cast<double>(without));  
 }
 
 TEST(Zncc, EverySimdLevelReturnsExactlyTheSameMatches) {

@@ -175,6 +175,7 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
   // The predicted patches of as many candidates as reserved above, sized now so that frames do not allocate.
   warp_buf_.resize(candidates_.capacity());
   patches_.resize(candidates_.capacity());
+  memos_.resize(candidates_.capacity());
   const int n = opt_.zncc.patch_size;
   for (size_t i = 0; i < warp_buf_.size(); ++i) {
     warp_buf_[i].resize(n, n);
@@ -211,6 +212,7 @@ bool ActiveSearchDataManager::predict_patch(const slam::Map& map, const slam::Se
   if (slot >= static_cast<int>(warp_buf_.size())) {
     warp_buf_.resize(static_cast<size_t>(slot) + 1);
     patches_.resize(static_cast<size_t>(slot) + 1);
+    memos_.resize(static_cast<size_t>(slot) + 1);
   }
   vision::Image& buf = warp_buf_[static_cast<size_t>(slot)];
   const int n = opt_.zncc.patch_size;
@@ -221,6 +223,7 @@ bool ActiveSearchDataManager::predict_patch(const slam::Map& map, const slam::Se
   if (!w.ok || w.n_outside > n * n / 4) return false;
   vision::Patch& patch = patches_[static_cast<size_t>(slot)];
   patch.assign(buf.view());
+  memos_[static_cast<size_t>(slot)].clear();  // a new patch (and image): nothing it remembers holds
   return patch.centred_energy() > 0;
 }
 
@@ -228,7 +231,8 @@ bool ActiveSearchDataManager::search(Candidate& c, const vision::SearchEllipse& 
                                      Eigen::Vector2d& z, double& score) {
   ++searches_;
   const auto t0 = std::chrono::steady_clock::now();
-  const vision::MatchResult r = matcher.match(patches_[static_cast<size_t>(c.slot)], image_, region);
+  const vision::MatchResult r =
+      matcher.match(patches_[static_cast<size_t>(c.slot)], image_, region, &memos_[static_cast<size_t>(c.slot)]);
   match_ms_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (!r.found) return false;
   z = Eigen::Vector2d(r.u, r.v);

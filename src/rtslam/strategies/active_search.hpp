@@ -197,15 +197,16 @@ class ActiveSearchDataManager final : public slam::DataManager {
   int reserved_width_ = 0, reserved_height_ = 0;  // image size the matchers' buffers were grown for
   vision::HarrisDetector harris_;
   vision::ImageView image_;
-  std::vector<double> depths_;
+  std::vector<double> depths_;  // scene prior: distances of this frame's updated Euclidean landmarks
   bool fej_ = false;
   double depth_hint_m_ = 0.0;
   Eigen::VectorXd fej_mean_;  // the linearization mean of the frame (first-estimate Jacobians)
-  const Eigen::VectorXd* lin() const { return fej_ ? &fej_mean_ : nullptr; }  // iterated EKF: the batch's correction over its blocks         // scene prior: distances of this frame's updated Euclidean landmarks
+  const Eigen::VectorXd* lin() const { return fej_ ? &fej_mean_ : nullptr; }
   std::vector<Candidate> candidates_;
   std::vector<Candidate*> order_;
   std::vector<vision::Image> warp_buf_;
   std::vector<vision::Patch> patches_;
+  std::vector<vision::ScoreMemo> memos_;  // per slot: its patch's scores in this frame's image (every search reuses)
   std::vector<int> untried_;
   std::vector<int> support_;
   std::vector<int> best_support_;

@@ -181,6 +181,67 @@ YAML::Node ZnccOptions::to_yaml() const {
 // ---------------------------------------------------------------------------------------------------------------
 // Matcher
 
+ScoreMemo::ScoreMemo(int capacity) {
+  RTSLAM_CHECK(capacity >= 1 && capacity <= (1 << 20), "ScoreMemo: capacity out of [1, 2^20]");
+  std::size_t n = 1;
+  while (n < static_cast<std::size_t>(capacity)) n *= 2;
+  entries_.resize(n);
+}
+
+void ScoreMemo::clear() {
+  size_ = 0;
+  if (++generation_ == 0) {  // wrapped: no stale entry may look current
+    for (Entry& e : entries_) e.generation = 0;
+    generation_ = 1;
+  }
+}
+
+std::size_t ScoreMemo::home(std::uint64_t key) const {
+  return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 40) & (entries_.size() - 1);
+}
+
+namespace {
+std::uint64_t memo_key(int u, int v) {
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(u)) << 32) | static_cast<std::uint32_t>(v);
+}
+}  // namespace
+
+bool ScoreMemo::lookup(int u, int v, double& value, bool& exact) const {
+  const std::uint64_t key = memo_key(u, v);
+  const std::size_t mask = entries_.size() - 1;
+  for (std::size_t i = home(key), probes = 0; probes < entries_.size(); i = (i + 1) & mask, ++probes) {
+    const Entry& e = entries_[i];
+    if (e.generation != generation_) return false;  // linear probing: an empty slot ends the chain
+    if (e.key == key) {
+      value = e.value;
+      exact = e.is_exact;
+      return true;
+    }
+  }
+  return false;
+}
+
+void ScoreMemo::remember(int u, int v, double value, bool exact) {
+  const std::uint64_t key = memo_key(u, v);
+  const std::size_t mask = entries_.size() - 1;
+  for (std::size_t i = home(key), probes = 0; probes < entries_.size(); i = (i + 1) & mask, ++probes) {
+    Entry& e = entries_[i];
+    if (e.generation != generation_) {
+      if (2 * (size_ + 1) > static_cast<int>(entries_.size())) return;  // at half load: stop remembering
+      e = Entry{generation_, key, value, exact};
+      ++size_;
+      return;
+    }
+    if (e.key != key) continue;
+    if (e.is_exact) return;
+    if (exact || value < e.value) {
+      e.value = value;
+      e.is_exact = exact;
+    }
+    return;
+  }
+}
+
 ZnccMatcher::ZnccMatcher(ZnccOptions options) : options_(options) { options_.validate(); }
 
 namespace {
@@ -506,7 +567,7 @@ void ZnccMatcher::reserve(double max_area_px2, int width, int height) {
   }
 }
 
-MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const SearchEllipse& region) {
+MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const SearchEllipse& region, ScoreMemo* memo) {
   RTSLAM_CHECK(patch.size() == options_.patch_size, "ZnccMatcher::match: patch size differs from options.patch_size");
   MatchResult res;
   if (patch.centred_energy() <= 0) return res;  // a uniform template cannot be matched
@@ -530,14 +591,15 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
   const bool simd = simd_level() != SimdLevel::scalar;
   // Window sums at full resolution: the exhaustive search evaluates every position, so integral images of the region
   // (grown for the sub-pixel neighbours) cost less than summing each window's rows; the two-level climb evaluates a
-  // few dozen positions, which sum their own rows.
+  // few dozen positions, which sum their own rows. The tables are made when the first window needs them (a memo
+  // may hold every score the search asks for).
   const IntegralImages* table = nullptr;
-  if (!options_.two_level) {
-    integral_.compute(image, Roi{box.x - h - 1, box.y - h - 1, box.w + 2 * h + 2, box.h + 2 * h + 2}, true);
-    table = &integral_;
-  }
   // Full-resolution score at (u, v) (with_pruning = false: always complete).
   auto full_score = [&](int u, int v, bool with_pruning, double floor, double* sc) {
+    if (!options_.two_level && table == nullptr) {
+      integral_.compute(image, Roi{box.x - h - 1, box.y - h - 1, box.w + 2 * h + 2, box.h + 2 * h + 2}, true);
+      table = &integral_;
+    }
     const int x0 = u - h, y0 = v - h;
     const Window w{image.row(y0) + x0, image.stride, x0, y0, table};
 #if defined(__x86_64__)
@@ -554,6 +616,20 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
   auto score_at = [&](int u, int v, double floor) {
     const std::size_t i = index(u, v);
     if (state_[i] == kExact) return scores_[i];
+    double known = 0.0;
+    bool known_exact = false;
+    if (memo != nullptr && memo->lookup(u, v, known, known_exact)) {
+      if (known_exact) {
+        state_[i] = kExact;
+        scores_[i] = known;
+        return known;
+      }
+      if (known <= floor) {  // score < remembered floor <= floor
+        state_[i] = kBelow;
+        scores_[i] = known;
+        return kNone;
+      }
+    }
     if (state_[i] == kBelow && scores_[i] <= floor) return kNone;  // score < recorded floor <= floor
     ++res.n_evaluated;
     double sc = 0.0;
@@ -561,10 +637,12 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
       ++res.n_pruned;
       state_[i] = kBelow;
       scores_[i] = floor;
+      if (memo != nullptr) memo->remember(u, v, floor, false);
       return kNone;
     }
     state_[i] = kExact;
     scores_[i] = sc;
+    if (memo != nullptr) memo->remember(u, v, sc, true);
     return sc;
   };
 
@@ -740,10 +818,12 @@ MatchResult ZnccMatcher::match(const Patch& patch, ImageView image, const Search
       all = all && fits;
       if (!fits) continue;
       double sc = 0.0;
+      bool known_exact = false;
       if (box.contains(u, v) && state_[index(u, v)] == kExact) {
         sc = scores_[index(u, v)];
-      } else {
+      } else if (!(memo != nullptr && memo->lookup(u, v, sc, known_exact) && known_exact)) {
         full_score(u, v, false, 0.0, &sc);
+        if (memo != nullptr) memo->remember(u, v, sc, true);
       }
       S[dv + 1][du + 1] = sc;
     }

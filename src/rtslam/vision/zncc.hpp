@@ -145,6 +145,41 @@ struct MatchResult {
   int n_pruned = 0;     // of those, abandoned by bounded partial correlation
 };
 
+/// Full-resolution scores of ONE template in ONE image, remembered across match() calls: the one-point RANSAC
+/// hypotheses search each landmark in small, overlapping boxes, and the score of a template at a position does not
+/// depend on the search that asks for it. An entry is either the exact score or the floor a position was abandoned
+/// below (bounded partial correlation), exactly as match() keeps them within one call, so a search with a memo
+/// returns what it returns without one (found, position, score, sub-pixel) and computes fewer windows (its
+/// n_evaluated counts only the windows it computed). The caller clears the memo when the template or the image
+/// changes. Open addressing over a fixed capacity (no allocation after construction); a full memo stops
+/// remembering, never forgets wrongly.
+class ScoreMemo {
+ public:
+  explicit ScoreMemo(int capacity = 128);
+  /// Forgets every entry (O(1)).
+  void clear();
+  /// What is remembered at (u, v): false if nothing; else `exact` tells whether `value` is the exact score or a
+  /// floor the score is below.
+  bool lookup(int u, int v, double& value, bool& exact) const;
+  /// Remembers the exact score at (u, v), or (exact false) that it scores below `value`. An exact score is never
+  /// replaced; a floor only by a lower floor or the exact score.
+  void remember(int u, int v, double value, bool exact);
+  int size() const { return size_; }
+  int capacity() const { return static_cast<int>(entries_.size()); }
+
+ private:
+  struct Entry {
+    std::uint32_t generation = 0;  // valid when equal to generation_
+    std::uint64_t key = 0;
+    double value = 0.0;            // the exact score, or the floor
+    bool is_exact = false;
+  };
+  std::size_t home(std::uint64_t key) const;
+  std::vector<Entry> entries_;
+  std::uint32_t generation_ = 1;
+  int size_ = 0;
+};
+
 /// Matches templates in images. Holds reusable buffers (integral images, half-resolution image and tables, score map):
 /// no allocation once they have grown; use one matcher per thread.
 class ZnccMatcher {
@@ -153,8 +188,9 @@ class ZnccMatcher {
   const ZnccOptions& options() const { return options_; }
 
   /// Searches `patch` (of size options().patch_size) in `image` over `region`. Positions whose patch would leave
-  /// the image are not evaluated.
-  MatchResult match(const Patch& patch, ImageView image, const SearchEllipse& region);
+  /// the image are not evaluated. With a memo (of this patch in this image), remembered full-resolution scores are
+  /// reused and new ones remembered; the result is the same as without.
+  MatchResult match(const Patch& patch, ImageView image, const SearchEllipse& region, ScoreMemo* memo = nullptr);
 
   /// Grows the buffers to what any search region of bounding-box area <= max_area_px2 in an image of
   /// width x height needs, so that match() allocates nothing afterwards (call once the image size is known).

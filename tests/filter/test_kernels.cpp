@@ -87,9 +87,26 @@ bool bit_identical(const MatrixXd& a, const MatrixXd& b) {
                     [](double x, double y) { return std::memcmp(&x, &y, sizeof(double)) == 0; });
 }
 
+// Whether the downdate has tiles on both of its AVX2 paths below the diagonal: 8 consecutive covariance rows
+// against 4 consecutive columns (plain loads and stores), and tiles across holes (masked).
+bool has_both_tile_kinds(const Layout& l) {
+  const auto full = [](const LaneGroup& g) { return g.segments == 1 && g.mask[0] == 0xF; };
+  bool plain = false, masked = false;
+  const int n = l.active().n;
+  for (int j0 = 0; j0 < n; j0 += 4) {
+    for (int p = j0 / kP + 1; p * kP < n; ++p) {
+      const LaneGroup &gc = l.groups[static_cast<size_t>(j0 / 4)], &gl = l.groups[static_cast<size_t>(2 * p)],
+                      &gh = l.groups[static_cast<size_t>(2 * p + 1)];
+      (full(gc) && full(gl) && full(gh) && gh.base[0] == gl.base[0] + kGroupLanes ? plain : masked) = true;
+    }
+  }
+  return plain && masked;
+}
+
 TEST(FilterKernels, DowndateMatchesDenseOnActiveRowsAndLeavesHolesUntouched) {
   Rng rng(5);
   const Layout l = make_layout(kRuns);
+  ASSERT_TRUE(has_both_tile_kinds(l));
   const int n = l.active().n;
   MatrixXd P0 = random_matrix(kCap, kCap, rng);
   P0 = (P0 + P0.transpose()).eval();

@@ -411,7 +411,7 @@ RTSLAM_FILTER_AVX2 void downdate_avx2(double* P, std::int64_t ldP, ActiveRows ac
       // P(cols, rows).
       const LaneGroup& gl = active.groups[2 * p];
       const LaneGroup& gh = active.groups[2 * p + 1];
-      if (cols_contiguous && full_group(gl) && full_group(gh) && gh.base[0] == gl.base[0]) {
+      if (cols_contiguous && full_group(gl) && full_group(gh) && gh.base[0] == gl.base[0] + kGroupLanes) {
         // 8 consecutive covariance rows and 4 consecutive columns (most tiles): plain loads and stores.
         const std::int64_t pi = gl.base[0];
         double* c0 = P + col_row[0] * ldP + pi;

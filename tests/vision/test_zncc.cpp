@@ -260,8 +260,10 @@ TEST(Zncc, AMemoNeverChangesAResultAndSavesWindows) {
         Patch p;
         ASSERT_TRUE(p.extract(img0.view(), u, v, 15));
         if (p.centred_energy() <= 0) continue;
-        for (const int capacity : {128, 4}) {  // 4: a memo that fills up (after 2 entries) must stay correct
-          ScoreMemo memo(capacity);
+        // 4: a memo that fills up (after 2 entries) must stay correct; 0: one never reserved remembers nothing.
+        for (const int capacity : {128, 4, 0}) {
+          ScoreMemo memo;
+          if (capacity > 0) memo.reserve(capacity);
           // Boxes on a 5 x 5 grid of offsets up to 3 px in a random order: a later box often lacks the peak an
           // earlier one held, so its best is a position an earlier search abandoned against a higher floor.
           std::vector<Eigen::Vector2d> centres;

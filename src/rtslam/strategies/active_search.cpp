@@ -223,7 +223,9 @@ bool ActiveSearchDataManager::predict_patch(const slam::Map& map, const slam::Se
   if (!w.ok || w.n_outside > n * n / 4) return false;
   vision::Patch& patch = patches_[static_cast<size_t>(slot)];
   patch.assign(buf.view());
-  memos_[static_cast<size_t>(slot)].clear();  // a new patch (and image): nothing it remembers holds
+  vision::ScoreMemo& memo = memos_[static_cast<size_t>(slot)];
+  if (memo.capacity() == 0) memo.reserve(kMemoEntries);  // a slot's first use (warm-up)
+  memo.clear();  // a new patch (and image): nothing it remembers holds
   return patch.centred_energy() > 0;
 }
 

@@ -119,6 +119,9 @@ class BudgetClock {
 class ActiveSearchDataManager final : public slam::DataManager {
  public:
   static constexpr int kMaxBatch = 32;  // observations in one batched correction
+  // Remembered ZNCC scores per landmark and frame (vision::ScoreMemo): the RANSAC boxes and the climbs of one
+  // landmark ask for a few dozen positions.
+  static constexpr int kMemoEntries = 128;
   ActiveSearchDataManager(ActiveSearchOptions options, const slam::MapManager& map_manager, int width, int height,
                           std::uint64_t seed);
   void process(slam::Map& map, slam::Sensor& sensor, const slam::RawData& raw, long frame,

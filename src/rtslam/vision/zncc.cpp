@@ -181,11 +181,13 @@ YAML::Node ZnccOptions::to_yaml() const {
 // ---------------------------------------------------------------------------------------------------------------
 // Matcher
 
-ScoreMemo::ScoreMemo(int capacity) {
+void ScoreMemo::reserve(int capacity) {
   RTSLAM_CHECK(capacity >= 1 && capacity <= (1 << 20), "ScoreMemo: capacity out of [1, 2^20]");
   std::size_t n = 1;
   while (n < static_cast<std::size_t>(capacity)) n *= 2;
-  entries_.resize(n);
+  entries_.assign(n, Entry{});
+  generation_ = 1;
+  size_ = 0;
 }
 
 void ScoreMemo::clear() {
@@ -207,6 +209,7 @@ std::uint64_t memo_key(int u, int v) {
 }  // namespace
 
 bool ScoreMemo::lookup(int u, int v, double& value, bool& exact) const {
+  if (entries_.empty()) return false;
   const std::uint64_t key = memo_key(u, v);
   const std::size_t mask = entries_.size() - 1;
   for (std::size_t i = home(key), probes = 0; probes < entries_.size(); i = (i + 1) & mask, ++probes) {
@@ -222,13 +225,14 @@ bool ScoreMemo::lookup(int u, int v, double& value, bool& exact) const {
 }
 
 void ScoreMemo::remember(int u, int v, double value, bool exact) {
+  if (entries_.empty()) return;
   const std::uint64_t key = memo_key(u, v);
   const std::size_t mask = entries_.size() - 1;
   for (std::size_t i = home(key), probes = 0; probes < entries_.size(); i = (i + 1) & mask, ++probes) {
     Entry& e = entries_[i];
     if (e.generation != generation_) {
       if (2 * (size_ + 1) > static_cast<int>(entries_.size())) return;  // at half load: stop remembering
-      e = Entry{generation_, key, value, exact};
+      e = Entry{key, value, generation_, exact};
       ++size_;
       return;
     }

@@ -155,7 +155,12 @@ struct MatchResult {
 /// remembering, never forgets wrongly.
 class ScoreMemo {
  public:
-  explicit ScoreMemo(int capacity = 128);
+  /// Holds nothing until reserve() (a memo per possible search slot costs no memory until the slot is used).
+  ScoreMemo() = default;
+  explicit ScoreMemo(int capacity) { reserve(capacity); }
+  /// Room for `capacity` entries (rounded up to a power of two; half of it is used before the memo stops
+  /// remembering); forgets every entry. The only allocation.
+  void reserve(int capacity);
   /// Forgets every entry (O(1)).
   void clear();
   /// What is remembered at (u, v): false if nothing; else `exact` tells whether `value` is the exact score or a
@@ -169,9 +174,9 @@ class ScoreMemo {
 
  private:
   struct Entry {
-    std::uint32_t generation = 0;  // valid when equal to generation_
     std::uint64_t key = 0;
     double value = 0.0;            // the exact score, or the floor
+    std::uint32_t generation = 0;  // valid when equal to generation_
     bool is_exact = false;
   };
   std::size_t home(std::uint64_t key) const;

@@ -357,115 +357,145 @@ RTSLAM_FILTER_AVX2 inline void transpose_store(double* dst, std::int64_t ld, __m
   _mm256_storeu_pd(dst + 3 * ld, _mm256_permute2f128_pd(t1, t3, 0x31));
 }
 
+// The columns j0 .. j0 + 3 of the downdate (kTileCols), as every tile of theirs needs them.
+struct TileColumns {
+  int j0 = 0;
+  const double* wj = nullptr;     // W(j0, 0) in the packed layout
+  const LaneGroup* gc = nullptr;  // their lane group
+  bool contiguous = false;        // four consecutive covariance rows
+  std::int64_t col_row[kTileCols] = {0, 0, 0, 0};  // covariance rows (lanes past n repeat j0's: never written)
+};
+
+// One tile of the downdate: packed rows p * kP .. + 7 against the columns tc (p >= tc.j0 / kP).
+RTSLAM_FILTER_AVX2 inline void downdate_tile(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m,
+                                             int w_stride, const TileColumns& tc, int p) {
+  const int n = active.n;
+  const int* rows = active.rows;
+  const int j0 = tc.j0;
+  const double* wj = tc.wj;
+  const LaneGroup& gc = *tc.gc;
+  const bool cols_contiguous = tc.contiguous;
+  const std::int64_t* col_row = tc.col_row;
+  const int i0 = p * kP;
+  const double* wi = W + static_cast<std::int64_t>(p) * w_stride * kP;
+  // Same sums as tile_sum: acc_c = acc_c + a * b_c, lanes = rows.
+  __m256d a0l = _mm256_setzero_pd(), a0h = _mm256_setzero_pd(), a1l = _mm256_setzero_pd(),
+          a1h = _mm256_setzero_pd(), a2l = _mm256_setzero_pd(), a2h = _mm256_setzero_pd(),
+          a3l = _mm256_setzero_pd(), a3h = _mm256_setzero_pd();
+  for (int k = 0; k < m; ++k) {
+    const __m256d xl = _mm256_loadu_pd(wi + k * kP);
+    const __m256d xh = _mm256_loadu_pd(wi + k * kP + 4);
+    const double* b = wj + k * kP;
+    __m256d y = _mm256_broadcast_sd(b);
+    a0l = _mm256_add_pd(a0l, _mm256_mul_pd(xl, y));
+    a0h = _mm256_add_pd(a0h, _mm256_mul_pd(xh, y));
+    y = _mm256_broadcast_sd(b + 1);
+    a1l = _mm256_add_pd(a1l, _mm256_mul_pd(xl, y));
+    a1h = _mm256_add_pd(a1h, _mm256_mul_pd(xh, y));
+    y = _mm256_broadcast_sd(b + 2);
+    a2l = _mm256_add_pd(a2l, _mm256_mul_pd(xl, y));
+    a2h = _mm256_add_pd(a2h, _mm256_mul_pd(xh, y));
+    y = _mm256_broadcast_sd(b + 3);
+    a3l = _mm256_add_pd(a3l, _mm256_mul_pd(xl, y));
+    a3h = _mm256_add_pd(a3h, _mm256_mul_pd(xh, y));
+  }
+  if (p == j0 / kP) {
+    // The tile holds the diagonal: element by element, lower triangle only.
+    alignas(32) double acc[kTileCols][kP];
+    _mm256_store_pd(acc[0], a0l);
+    _mm256_store_pd(acc[0] + 4, a0h);
+    _mm256_store_pd(acc[1], a1l);
+    _mm256_store_pd(acc[1] + 4, a1h);
+    _mm256_store_pd(acc[2], a2l);
+    _mm256_store_pd(acc[2] + 4, a2h);
+    _mm256_store_pd(acc[3], a3l);
+    _mm256_store_pd(acc[3] + 4, a3h);
+    write_tile(P, ldP, active, i0, j0, acc);
+    return;
+  }
+  // Strictly below the diagonal: P(rows, cols) −= acc column by column, then the 4 × 8 transpose onto
+  // P(cols, rows).
+  const LaneGroup& gl = active.groups[2 * p];
+  const LaneGroup& gh = active.groups[2 * p + 1];
+  if (cols_contiguous && full_group(gl) && full_group(gh) && gh.base[0] == gl.base[0] + kGroupLanes) {
+    // 8 consecutive covariance rows and 4 consecutive columns (most tiles): plain loads and stores.
+    const std::int64_t pi = gl.base[0];
+    double* c0 = P + col_row[0] * ldP + pi;
+    double* c1 = c0 + ldP;
+    double* c2 = c1 + ldP;
+    double* c3 = c2 + ldP;
+    const __m256d v0l = _mm256_sub_pd(_mm256_loadu_pd(c0), a0l);
+    const __m256d v0h = _mm256_sub_pd(_mm256_loadu_pd(c0 + 4), a0h);
+    const __m256d v1l = _mm256_sub_pd(_mm256_loadu_pd(c1), a1l);
+    const __m256d v1h = _mm256_sub_pd(_mm256_loadu_pd(c1 + 4), a1h);
+    const __m256d v2l = _mm256_sub_pd(_mm256_loadu_pd(c2), a2l);
+    const __m256d v2h = _mm256_sub_pd(_mm256_loadu_pd(c2 + 4), a2h);
+    const __m256d v3l = _mm256_sub_pd(_mm256_loadu_pd(c3), a3l);
+    const __m256d v3h = _mm256_sub_pd(_mm256_loadu_pd(c3 + 4), a3h);
+    _mm256_storeu_pd(c0, v0l);
+    _mm256_storeu_pd(c0 + 4, v0h);
+    _mm256_storeu_pd(c1, v1l);
+    _mm256_storeu_pd(c1 + 4, v1h);
+    _mm256_storeu_pd(c2, v2l);
+    _mm256_storeu_pd(c2 + 4, v2h);
+    _mm256_storeu_pd(c3, v3l);
+    _mm256_storeu_pd(c3 + 4, v3h);
+    double* m0 = P + pi * ldP + col_row[0];  // P(cols, row pi)
+    transpose_store(m0, ldP, v0l, v1l, v2l, v3l);
+    transpose_store(m0 + 4 * ldP, ldP, v0h, v1h, v2h, v3h);
+    return;
+  }
+  // Across holes: each half-panel still one register, by masked loads and stores.
+  __m256d v[kTileCols][2];
+  const __m256d acc[kTileCols][2] = {{a0l, a0h}, {a1l, a1h}, {a2l, a2h}, {a3l, a3h}};
+  for (int c = 0; c < kTileCols; ++c) {
+    double* col = P + col_row[c] * ldP;
+    v[c][0] = _mm256_sub_pd(load_group(col, gl), acc[c][0]);
+    v[c][1] = _mm256_sub_pd(load_group(col, gh), acc[c][1]);
+  }
+  const unsigned valid_cols = gc.mask[0] | gc.mask[1] | gc.mask[2] | gc.mask[3];
+  for (int c = 0; c < kTileCols; ++c) {
+    if (!(valid_cols & (1u << c))) continue;
+    double* col = P + col_row[c] * ldP;
+    store_group(col, gl, v[c][0]);
+    store_group(col, gh, v[c][1]);
+  }
+  for (int h = 0; h < 2; ++h) {
+    const __m256d t0 = _mm256_unpacklo_pd(v[0][h], v[1][h]), t1 = _mm256_unpackhi_pd(v[0][h], v[1][h]);
+    const __m256d t2 = _mm256_unpacklo_pd(v[2][h], v[3][h]), t3 = _mm256_unpackhi_pd(v[2][h], v[3][h]);
+    const __m256d row_v[4] = {_mm256_permute2f128_pd(t0, t2, 0x20), _mm256_permute2f128_pd(t1, t3, 0x20),
+                              _mm256_permute2f128_pd(t0, t2, 0x31), _mm256_permute2f128_pd(t1, t3, 0x31)};
+    for (int r = 0; r < kGroupLanes; ++r) {
+      const int i = i0 + h * kGroupLanes + r;
+      if (i >= n) break;
+      store_group(P + static_cast<std::int64_t>(rows[i]) * ldP, gc, row_v[r]);
+    }
+  }
+}
+
+// Tiles in the order of 8-column strips, both 4-column halves of a strip at each panel: the halves' mirror stores
+// (P(cols, rows), rows of P) fill the two halves of the same cache lines back to back, which the column-by-column
+// order wrote a whole sweep apart (P is larger than the L2 cache, so each line was fetched twice). Every element is
+// computed as before.
 RTSLAM_FILTER_AVX2 void downdate_avx2(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m,
                                       int w_stride) {
   const int n = active.n;
   const int* rows = active.rows;
   const int np = panel_count(n);
-  for (int j0 = 0; j0 < n; j0 += kTileCols) {
-    const double* wj = W + static_cast<std::int64_t>(j0 / kP) * w_stride * kP + j0 % kP;
-    const LaneGroup& gc = active.groups[j0 / kGroupLanes];
-    const bool cols_contiguous = full_group(gc);
-    // Covariance rows of the tile's columns (lanes past n are in no segment of gc and are not written).
-    std::int64_t col_row[kTileCols];
-    for (int c = 0; c < kTileCols; ++c) col_row[c] = j0 + c < n ? rows[j0 + c] : rows[j0];
-    for (int p = j0 / kP; p < np; ++p) {
-      const int i0 = p * kP;
-      const double* wi = W + static_cast<std::int64_t>(p) * w_stride * kP;
-      // Same sums as tile_sum: acc_c = acc_c + a * b_c, lanes = rows.
-      __m256d a0l = _mm256_setzero_pd(), a0h = _mm256_setzero_pd(), a1l = _mm256_setzero_pd(),
-              a1h = _mm256_setzero_pd(), a2l = _mm256_setzero_pd(), a2h = _mm256_setzero_pd(),
-              a3l = _mm256_setzero_pd(), a3h = _mm256_setzero_pd();
-      for (int k = 0; k < m; ++k) {
-        const __m256d xl = _mm256_loadu_pd(wi + k * kP);
-        const __m256d xh = _mm256_loadu_pd(wi + k * kP + 4);
-        const double* b = wj + k * kP;
-        __m256d y = _mm256_broadcast_sd(b);
-        a0l = _mm256_add_pd(a0l, _mm256_mul_pd(xl, y));
-        a0h = _mm256_add_pd(a0h, _mm256_mul_pd(xh, y));
-        y = _mm256_broadcast_sd(b + 1);
-        a1l = _mm256_add_pd(a1l, _mm256_mul_pd(xl, y));
-        a1h = _mm256_add_pd(a1h, _mm256_mul_pd(xh, y));
-        y = _mm256_broadcast_sd(b + 2);
-        a2l = _mm256_add_pd(a2l, _mm256_mul_pd(xl, y));
-        a2h = _mm256_add_pd(a2h, _mm256_mul_pd(xh, y));
-        y = _mm256_broadcast_sd(b + 3);
-        a3l = _mm256_add_pd(a3l, _mm256_mul_pd(xl, y));
-        a3h = _mm256_add_pd(a3h, _mm256_mul_pd(xh, y));
-      }
-      if (p == j0 / kP) {
-        // The tile holds the diagonal: element by element, lower triangle only.
-        alignas(32) double acc[kTileCols][kP];
-        _mm256_store_pd(acc[0], a0l);
-        _mm256_store_pd(acc[0] + 4, a0h);
-        _mm256_store_pd(acc[1], a1l);
-        _mm256_store_pd(acc[1] + 4, a1h);
-        _mm256_store_pd(acc[2], a2l);
-        _mm256_store_pd(acc[2] + 4, a2h);
-        _mm256_store_pd(acc[3], a3l);
-        _mm256_store_pd(acc[3] + 4, a3h);
-        write_tile(P, ldP, active, i0, j0, acc);
-        continue;
-      }
-      // Strictly below the diagonal: P(rows, cols) −= acc column by column, then the 4 × 8 transpose onto
-      // P(cols, rows).
-      const LaneGroup& gl = active.groups[2 * p];
-      const LaneGroup& gh = active.groups[2 * p + 1];
-      if (cols_contiguous && full_group(gl) && full_group(gh) && gh.base[0] == gl.base[0] + kGroupLanes) {
-        // 8 consecutive covariance rows and 4 consecutive columns (most tiles): plain loads and stores.
-        const std::int64_t pi = gl.base[0];
-        double* c0 = P + col_row[0] * ldP + pi;
-        double* c1 = c0 + ldP;
-        double* c2 = c1 + ldP;
-        double* c3 = c2 + ldP;
-        const __m256d v0l = _mm256_sub_pd(_mm256_loadu_pd(c0), a0l);
-        const __m256d v0h = _mm256_sub_pd(_mm256_loadu_pd(c0 + 4), a0h);
-        const __m256d v1l = _mm256_sub_pd(_mm256_loadu_pd(c1), a1l);
-        const __m256d v1h = _mm256_sub_pd(_mm256_loadu_pd(c1 + 4), a1h);
-        const __m256d v2l = _mm256_sub_pd(_mm256_loadu_pd(c2), a2l);
-        const __m256d v2h = _mm256_sub_pd(_mm256_loadu_pd(c2 + 4), a2h);
-        const __m256d v3l = _mm256_sub_pd(_mm256_loadu_pd(c3), a3l);
-        const __m256d v3h = _mm256_sub_pd(_mm256_loadu_pd(c3 + 4), a3h);
-        _mm256_storeu_pd(c0, v0l);
-        _mm256_storeu_pd(c0 + 4, v0h);
-        _mm256_storeu_pd(c1, v1l);
-        _mm256_storeu_pd(c1 + 4, v1h);
-        _mm256_storeu_pd(c2, v2l);
-        _mm256_storeu_pd(c2 + 4, v2h);
-        _mm256_storeu_pd(c3, v3l);
-        _mm256_storeu_pd(c3 + 4, v3h);
-        double* m0 = P + pi * ldP + col_row[0];  // P(cols, row pi)
-        transpose_store(m0, ldP, v0l, v1l, v2l, v3l);
-        transpose_store(m0 + 4 * ldP, ldP, v0h, v1h, v2h, v3h);
-        continue;
-      }
-      // Across holes: each half-panel still one register, by masked loads and stores.
-      __m256d v[kTileCols][2];
-      const __m256d acc[kTileCols][2] = {{a0l, a0h}, {a1l, a1h}, {a2l, a2h}, {a3l, a3h}};
-      for (int c = 0; c < kTileCols; ++c) {
-        double* col = P + col_row[c] * ldP;
-        v[c][0] = _mm256_sub_pd(load_group(col, gl), acc[c][0]);
-        v[c][1] = _mm256_sub_pd(load_group(col, gh), acc[c][1]);
-      }
-      const unsigned valid_cols = gc.mask[0] | gc.mask[1] | gc.mask[2] | gc.mask[3];
-      for (int c = 0; c < kTileCols; ++c) {
-        if (!(valid_cols & (1u << c))) continue;
-        double* col = P + col_row[c] * ldP;
-        store_group(col, gl, v[c][0]);
-        store_group(col, gh, v[c][1]);
-      }
-      for (int h = 0; h < 2; ++h) {
-        const __m256d t0 = _mm256_unpacklo_pd(v[0][h], v[1][h]), t1 = _mm256_unpackhi_pd(v[0][h], v[1][h]);
-        const __m256d t2 = _mm256_unpacklo_pd(v[2][h], v[3][h]), t3 = _mm256_unpackhi_pd(v[2][h], v[3][h]);
-        const __m256d row_v[4] = {_mm256_permute2f128_pd(t0, t2, 0x20), _mm256_permute2f128_pd(t1, t3, 0x20),
-                                  _mm256_permute2f128_pd(t0, t2, 0x31), _mm256_permute2f128_pd(t1, t3, 0x31)};
-        for (int r = 0; r < kGroupLanes; ++r) {
-          const int i = i0 + h * kGroupLanes + r;
-          if (i >= n) break;
-          store_group(P + static_cast<std::int64_t>(rows[i]) * ldP, gc, row_v[r]);
-        }
-      }
+  static_assert(2 * kTileCols == kP, "a strip is one panel wide");
+  for (int s0 = 0; s0 < n; s0 += kP) {
+    TileColumns tc[2];
+    int halves = 0;
+    for (int j0 = s0; j0 < n && j0 < s0 + kP; j0 += kTileCols) {
+      TileColumns& t = tc[halves++];
+      t.j0 = j0;
+      t.wj = W + static_cast<std::int64_t>(j0 / kP) * w_stride * kP + j0 % kP;
+      t.gc = &active.groups[j0 / kGroupLanes];
+      t.contiguous = full_group(*t.gc);
+      for (int c = 0; c < kTileCols; ++c) t.col_row[c] = j0 + c < n ? rows[j0 + c] : rows[j0];
     }
+    for (int p = s0 / kP; p < np; ++p)
+      for (int h = 0; h < halves; ++h) downdate_tile(P, ldP, active, W, m, w_stride, tc[h], p);
   }
   _mm256_zeroupper();
 }

@@ -310,5 +310,56 @@ TEST(System, RobotsWithoutInputsProcessAtOnce) {
   EXPECT_THROW(system.feed(std::move(imu)), DataError);  // a constant-velocity robot takes no input
 }
 
+// Frames count one robot's image times, not images (FrameStats::frame, the map manager's unit): the two images of a
+// stereo pair share one; the next time starts the next, and so does another robot's image of the same time; an
+// absolute fix between them starts none. The report's index still counts the images.
+TEST(System, AStereoPairIsOneFrame) {
+  World world;
+  Map& map = world.add_map();
+  System system(world, map, std::make_unique<NoMapManager>());
+  auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
+  Sensor& cam0 = robot->add_sensor(std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
+  Sensor& cam1 = robot->add_sensor(std::make_unique<PinholeSensor>("cam1", system_camera(), math::Pose{}));
+  Sensor& gps = robot->add_sensor(std::make_unique<AbsoluteSensor>("gps", AbsoluteSensor::Kind::Position, math::Pose{}));
+  auto d0 = std::make_unique<CountingDataManager>();
+  auto d1 = std::make_unique<CountingDataManager>();
+  auto dg = std::make_unique<CountingDataManager>();
+  CountingDataManager &c0 = *d0, &c1 = *d1, &cg = *dg;
+  cam0.set_data_manager(std::move(d0));
+  cam1.set_data_manager(std::move(d1));
+  gps.set_data_manager(std::move(dg));
+  system.add_robot(std::move(robot), std::make_unique<WindowStarter>(1, 13, 12));
+  auto other = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
+  Sensor& cam2 = other->add_sensor(std::make_unique<PinholeSensor>("other", system_camera(), math::Pose{}));
+  auto d2 = std::make_unique<CountingDataManager>();
+  CountingDataManager& c2 = *d2;
+  cam2.set_data_manager(std::move(d2));
+  system.add_robot(std::move(other), std::make_unique<WindowStarter>(1, 13, 12));
+  Recorder recorder;
+  system.add_observer(recorder);
+  auto feed = [&](const Sensor& s, TimeNs t) {
+    auto d = system.spare<Blob>();
+    d->t = t * kNsPerMs;
+    d->sensor_id = s.id();
+    system.feed(std::move(d));
+  };
+  feed(cam0, 10);
+  feed(cam1, 10);
+  feed(gps, 15);
+  feed(cam1, 20);  // either camera may come first
+  feed(cam0, 20);
+  feed(cam0, 30);  // a time with one image only
+  feed(cam0, 40);
+  feed(cam1, 40);
+  feed(cam2, 40);  // the other robot, same time: its own frame
+  feed(cam0, 50);
+  EXPECT_EQ(c0.frames, (std::vector<long>{0, 1, 2, 3, 5}));
+  EXPECT_EQ(c1.frames, (std::vector<long>{0, 1, 3}));
+  EXPECT_EQ(c2.frames, (std::vector<long>{4}));
+  EXPECT_EQ(cg.frames, (std::vector<long>{0}));  // between frames 0 and 1: in frame 0's
+  EXPECT_EQ(recorder.indices, (std::vector<long>{0, 1, 2, 2, 3, 4, 5, 6, 7, 8}));
+  EXPECT_EQ(system.steps(), 9);
+}
+
 }  // namespace
 }  // namespace rtslam::slam

@@ -58,8 +58,9 @@ class Landmark {
   /// The block's mean when this parametrization was created (first-estimate Jacobians: the linearization point of
   /// Euclidean landmarks, which are created by reparametrization once their depth has converged).
   Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 16, 1> first_estimate;
-  /// Frame counters for the map manager.
+  /// The map frame (FrameStats::frame) it was made in, for the map manager, and the sensor whose datum made it.
   long frame_created = 0;
+  int sensor_created = -1;
 
  protected:
   Landmark(LandmarkType type, int id, filter::BlockId block) : id_(id), type_(type), block_(block) {}

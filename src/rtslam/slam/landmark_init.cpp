@@ -43,7 +43,10 @@ Landmark* init_ahp_landmark(Map& map, Sensor& sensor, const Eigen::Vector2d& z, 
   Landmark* lmk = map.add_landmark(filter::BlockLayout::euclidean(7), L,
                                    std::span<const filter::BlockId>(parents, n_parents), J, Q,
                                    [](int id, filter::BlockId b) { return std::make_unique<AhpPointLandmark>(id, b); });
-  if (lmk) lmk->frame_created = frame;
+  if (lmk) {
+    lmk->frame_created = frame;
+    lmk->sensor_created = sensor.id();
+  }
   return lmk;
 }
 

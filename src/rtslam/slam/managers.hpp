@@ -21,6 +21,11 @@ struct RawData {
 /// Per-frame statistics the data manager fills (written to frames.csv later).
 struct FrameStats {
   TimeNs t = 0;
+  // The map's frame of this datum: one robot's landmark-sensor data of one time share it (a stereo pair is one frame;
+  // several robots' images count one each), and the map manager's frame-counted settings and the landmarks' counters
+  // count these frames. `sensor_id`: the datum's sensor.
+  long frame = 0;
+  int sensor_id = -1;
   int landmarks_in_map = 0;
   int visible = 0;
   int searched = 0;

@@ -68,6 +68,7 @@ Landmark* Map::reparametrize(Landmark& old, const filter::BlockLayout& layout,
   lmk->first_estimate = mean;
   lmk->descriptor = std::move(old.descriptor);
   lmk->frame_created = old.frame_created;
+  lmk->sensor_created = old.sensor_created;
   lmk->observations_ = std::move(old.observations_);
   for (auto& o : lmk->observations_) o.landmark = lmk.get();
   state_.remove_block(old.block());

@@ -194,6 +194,14 @@ FrameStats System::process(const RawData& raw) {
   if (!sensor.data_manager()) throw ConfigError(fmt::format("sensor '{}' has no data manager", sensor.name()));
   FrameStats stats;
   stats.t = raw.t;
+  stats.sensor_id = raw.sensor_id;
+  stats.landmark_frame = sensor.observes_landmarks();
+  if (stats.landmark_frame && (map_frame_ < 0 || raw.t != map_frame_t_ || &sensor.robot() != map_frame_robot_)) {
+    ++map_frame_;
+    map_frame_t_ = raw.t;
+    map_frame_robot_ = &sensor.robot();
+  }
+  stats.frame = std::max(map_frame_, 0L);
   // Every robot of the map moves to the datum's time in the robots' clock: its stamp shifted by the sensor's current
   // time offset estimate (robots share the map's covariance). A shift that would take the sensor's robot back in
   // time (the estimate decreased, or another camera of the same time was processed with a larger one) is raised to
@@ -216,10 +224,9 @@ FrameStats System::process(const RawData& raw) {
   }
   const auto t1 = std::chrono::steady_clock::now();
   stats.time_predict_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-  sensor.data_manager()->process(map_, sensor, raw, frame_, stats);
+  sensor.data_manager()->process(map_, sensor, raw, stats.frame, stats);
   const auto t2 = std::chrono::steady_clock::now();
-  stats.landmark_frame = sensor.observes_landmarks();
-  if (stats.landmark_frame) map_manager_->manage(map_, sensor, frame_, stats);
+  if (stats.landmark_frame) map_manager_->manage(map_, sensor, stats.frame, stats);
   const auto t3 = std::chrono::steady_clock::now();
   stats.time_map_ms = std::chrono::duration<double, std::milli>(t3 - t2).count();
   stats.time_total_ms = std::chrono::duration<double, std::milli>(t3 - t0).count();

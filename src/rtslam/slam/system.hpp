@@ -55,7 +55,7 @@ class RobotStarter {
 
 /// What an observer sees after each datum the filter processed. References are valid during the call only.
 struct StepReport {
-  long index = 0;  // data processed before this one (the landmarks' frame_created counts the same)
+  long index = 0;  // landmark sensors' data processed before this one (a stereo pair counts 2; stats.frame counts 1)
   const RawData& raw;
   const Map& map;
   const Robot& robot;    // the robot of the datum's sensor
@@ -176,7 +176,11 @@ class System {
   std::vector<std::unique_ptr<StepHook>> hooks_;
   RingBuffer<std::unique_ptr<RawData>> pending_;
   std::vector<std::unique_ptr<RawData>> spares_;
-  long frame_ = 0;
+  long frame_ = 0;  // landmark sensors' data processed
+  // The map's frame (FrameStats::frame): a landmark sensor's datum of another time or another robot starts the next.
+  long map_frame_ = -1;
+  TimeNs map_frame_t_ = 0;
+  const Robot* map_frame_robot_ = nullptr;
 };
 
 }  // namespace rtslam::slam

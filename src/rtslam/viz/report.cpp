@@ -46,7 +46,10 @@ FrameReport make_report(int index, TimeNs t, const slam::Map& map, const std::ve
       J << Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity() / rho, -L.segment<3>(3) / (rho * rho);
       lr.cov_W = J * P * J.transpose();
     }
-    lr.created_now = l->frame_created == index;
+    // Made by this datum: its map frame and its sensor (a stereo pair shares the frame; without the stats, one
+    // camera's frames are its data).
+    lr.created_now = stats != nullptr ? l->frame_created == stats->frame && l->sensor_created == stats->sensor_id
+                                      : l->frame_created == index;
     if (lr.created_now) {
       if (const strategies::PointDescriptor* d = strategies::point_descriptor(*l)) lr.z0_px = d->z0_px;
     }

@@ -176,6 +176,7 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
   warp_buf_.resize(candidates_.capacity());
   patches_.resize(candidates_.capacity());
   memos_.resize(candidates_.capacity());
+  for (vision::ScoreMemo& m : memos_) m.reserve(kMemoEntries);  // 3 KB each, so that frames do not allocate
   const int n = opt_.zncc.patch_size;
   for (size_t i = 0; i < warp_buf_.size(); ++i) {
     warp_buf_[i].resize(n, n);
@@ -224,7 +225,7 @@ bool ActiveSearchDataManager::predict_patch(const slam::Map& map, const slam::Se
   vision::Patch& patch = patches_[static_cast<size_t>(slot)];
   patch.assign(buf.view());
   vision::ScoreMemo& memo = memos_[static_cast<size_t>(slot)];
-  if (memo.capacity() == 0) memo.reserve(kMemoEntries);  // a slot's first use (warm-up)
+  if (memo.capacity() == 0) memo.reserve(kMemoEntries);  // a slot beyond the reserved ones (as warp_buf_ above)
   memo.clear();  // a new patch (and image): nothing it remembers holds
   return patch.centred_energy() > 0;
 }

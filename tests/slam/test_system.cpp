@@ -22,6 +22,15 @@ models::CameraIntrinsics system_camera() {
   return c;
 }
 
+// Adds a sensor to `robot` with a counting data manager; returns the manager.
+CountingDataManager& add_counted(Robot& robot, std::unique_ptr<Sensor> sensor) {
+  Sensor& s = robot.add_sensor(std::move(sensor));
+  auto dm = std::make_unique<CountingDataManager>();
+  CountingDataManager& counting = *dm;
+  s.set_data_manager(std::move(dm));
+  return counting;
+}
+
 // Starts at the `start_at`-th offered datum, replaying the data it held since the first offer (as a
 // visual-inertial start replays its window); the held copies are its own.
 class WindowStarter final : public RobotStarter {
@@ -293,10 +302,9 @@ TEST(System, RobotsWithoutInputsProcessAtOnce) {
   Map& map = world.add_map();
   System system(world, map, std::make_unique<NoMapManager>());
   auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
-  Sensor& cam = robot->add_sensor(std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
-  auto dm = std::make_unique<CountingDataManager>();
-  CountingDataManager& counting = *dm;
-  cam.set_data_manager(std::move(dm));
+  CountingDataManager& counting =
+      add_counted(*robot, std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
+  const Sensor& cam = *robot->sensors()[0];
   const int input = system.add_robot(std::move(robot), std::make_unique<WindowStarter>(1, 13, 12));
   auto d = system.spare<Blob>();
   d->t = 5 * kNsPerMs;
@@ -318,22 +326,16 @@ TEST(System, AStereoPairIsOneFrame) {
   Map& map = world.add_map();
   System system(world, map, std::make_unique<NoMapManager>());
   auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
-  Sensor& cam0 = robot->add_sensor(std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
-  Sensor& cam1 = robot->add_sensor(std::make_unique<PinholeSensor>("cam1", system_camera(), math::Pose{}));
-  Sensor& gps = robot->add_sensor(std::make_unique<AbsoluteSensor>("gps", AbsoluteSensor::Kind::Position, math::Pose{}));
-  auto d0 = std::make_unique<CountingDataManager>();
-  auto d1 = std::make_unique<CountingDataManager>();
-  auto dg = std::make_unique<CountingDataManager>();
-  CountingDataManager &c0 = *d0, &c1 = *d1, &cg = *dg;
-  cam0.set_data_manager(std::move(d0));
-  cam1.set_data_manager(std::move(d1));
-  gps.set_data_manager(std::move(dg));
+  CountingDataManager& c0 = add_counted(*robot, std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
+  CountingDataManager& c1 = add_counted(*robot, std::make_unique<PinholeSensor>("cam1", system_camera(), math::Pose{}));
+  CountingDataManager& cg =
+      add_counted(*robot, std::make_unique<AbsoluteSensor>("gps", AbsoluteSensor::Kind::Position, math::Pose{}));
+  const Sensor &cam0 = *robot->sensors()[0], &cam1 = *robot->sensors()[1], &gps = *robot->sensors()[2];
   system.add_robot(std::move(robot), std::make_unique<WindowStarter>(1, 13, 12));
   auto other = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
-  Sensor& cam2 = other->add_sensor(std::make_unique<PinholeSensor>("other", system_camera(), math::Pose{}));
-  auto d2 = std::make_unique<CountingDataManager>();
-  CountingDataManager& c2 = *d2;
-  cam2.set_data_manager(std::move(d2));
+  CountingDataManager& c2 =
+      add_counted(*other, std::make_unique<PinholeSensor>("other", system_camera(), math::Pose{}));
+  const Sensor& cam2 = *other->sensors()[0];
   system.add_robot(std::move(other), std::make_unique<WindowStarter>(1, 13, 12));
   Recorder recorder;
   system.add_observer(recorder);

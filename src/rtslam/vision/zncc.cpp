@@ -208,41 +208,38 @@ std::uint64_t memo_key(int u, int v) {
 }
 }  // namespace
 
-bool ScoreMemo::lookup(int u, int v, double& value, bool& exact) const {
-  if (entries_.empty()) return false;
-  const std::uint64_t key = memo_key(u, v);
+// Linear probing from the key's home: the key's entry, or the empty slot that ends its chain; npos if neither (a
+// memo never reserved; the half-load limit keeps a reserved one from filling).
+std::size_t ScoreMemo::slot(std::uint64_t key) const {
   const std::size_t mask = entries_.size() - 1;
-  for (std::size_t i = home(key), probes = 0; probes < entries_.size(); i = (i + 1) & mask, ++probes) {
-    const Entry& e = entries_[i];
-    if (e.generation != generation_) return false;  // linear probing: an empty slot ends the chain
-    if (e.key == key) {
-      value = e.value;
-      exact = e.is_exact;
-      return true;
-    }
+  for (std::size_t i = entries_.empty() ? 0 : home(key), probes = 0; probes < entries_.size();
+       i = (i + 1) & mask, ++probes) {
+    if (entries_[i].generation != generation_ || entries_[i].key == key) return i;
   }
-  return false;
+  return npos;
+}
+
+bool ScoreMemo::lookup(int u, int v, double& value, bool& exact) const {
+  const std::uint64_t key = memo_key(u, v);
+  const std::size_t i = slot(key);
+  if (i == npos || entries_[i].generation != generation_) return false;
+  value = entries_[i].value;
+  exact = entries_[i].is_exact;
+  return true;
 }
 
 void ScoreMemo::remember(int u, int v, double value, bool exact) {
-  if (entries_.empty()) return;
   const std::uint64_t key = memo_key(u, v);
-  const std::size_t mask = entries_.size() - 1;
-  for (std::size_t i = home(key), probes = 0; probes < entries_.size(); i = (i + 1) & mask, ++probes) {
-    Entry& e = entries_[i];
-    if (e.generation != generation_) {
-      if (2 * (size_ + 1) > static_cast<int>(entries_.size())) return;  // at half load: stop remembering
-      e = Entry{key, value, generation_, exact};
-      ++size_;
-      return;
-    }
-    if (e.key != key) continue;
-    if (e.is_exact) return;
-    if (exact || value < e.value) {
-      e.value = value;
-      e.is_exact = exact;
-    }
-    return;
+  const std::size_t i = slot(key);
+  if (i == npos) return;
+  Entry& e = entries_[i];
+  if (e.generation != generation_) {
+    if (2 * (size_ + 1) > static_cast<int>(entries_.size())) return;  // at half load: stop remembering
+    e = Entry{key, value, generation_, exact};
+    ++size_;
+  } else if (!e.is_exact && (exact || value < e.value)) {  // an exact score is never replaced; a floor by a lower one
+    e.value = value;
+    e.is_exact = exact;
   }
 }
 

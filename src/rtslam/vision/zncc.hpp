@@ -155,7 +155,7 @@ struct MatchResult {
 /// remembering, never forgets wrongly.
 class ScoreMemo {
  public:
-  /// Holds nothing until reserve() (a memo per possible search slot costs no memory until the slot is used).
+  /// Holds nothing until reserve(): remembers nothing, and a search with it computes every window.
   ScoreMemo() = default;
   explicit ScoreMemo(int capacity) { reserve(capacity); }
   /// Room for `capacity` entries (rounded up to a power of two; half of it is used before the memo stops
@@ -179,7 +179,9 @@ class ScoreMemo {
     std::uint32_t generation = 0;  // valid when equal to generation_
     bool is_exact = false;
   };
+  static constexpr std::size_t npos = static_cast<std::size_t>(-1);
   std::size_t home(std::uint64_t key) const;
+  std::size_t slot(std::uint64_t key) const;
   std::vector<Entry> entries_;
   std::uint32_t generation_ = 1;
   int size_ = 0;

@@ -116,7 +116,7 @@ void run_pipeline_bench(const BenchOptions& bo) {
   progress.finish();
   const double load_after = bench_load_average();
 
-  std::vector<double> total_ms, predict, match, ransac, update, init, map, corrections;
+  std::vector<double> total_ms, predict, match, ransac, update, init, map, corrections, hypotheses;
   double filter_s = 0.0;
   const TimeNs t_first = result.frames.empty() ? 0 : result.frames.front().t;
   for (const auto& f : result.frames) {
@@ -130,6 +130,7 @@ void run_pipeline_bench(const BenchOptions& bo) {
     init.push_back(f.time_init_ms);
     map.push_back(f.time_map_ms);
     corrections.push_back(f.updated);
+    hypotheses.push_back(f.ransac_hypotheses);
   }
   const auto t = io::percentiles(total_ms);
   const auto corr = io::percentiles(corrections);
@@ -163,6 +164,9 @@ void run_pipeline_bench(const BenchOptions& bo) {
   std::cout << fmt::format("  corrections per frame (landmarks updated): median {:.0f}, mean {:.1f}, {:.1f} % of frames "
                            "with 20 or more\n",
                            corr.median, corr.mean, 100.0 * at_least_20);
+  const auto hyp = io::percentiles(hypotheses);
+  std::cout << fmt::format("  one-point RANSAC hypotheses per frame: median {:.0f}, mean {:.2f}, max {:.0f}\n", hyp.median,
+                           hyp.mean, hyp.max);
   std::cout << fmt::format(
       "  throughput: {:.1f} images/s over {:.2f} s wall ({}), filter {:.2f} s, waiting for "
       "input {:.2f} s, process CPU {:.2f} s, load average {:.2f} -> {:.2f} on {} cores\n",
@@ -191,6 +195,7 @@ void run_pipeline_bench(const BenchOptions& bo) {
     j["map_ms"] = io::to_json(io::percentiles(map));
     j["corrections_per_frame"] = io::to_json(corr);
     j["frames_with_20_corrections"] = at_least_20;
+    j["ransac_hypotheses_mean"] = hyp.mean;
     j["throughput_fps"] = fps;
     j["wall_s"] = wall_s;
     j["filter_s"] = filter_s;

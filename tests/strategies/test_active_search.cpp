@@ -4,6 +4,7 @@
 // short sequence through the System.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -206,6 +207,50 @@ TEST(ActiveSearch, MatchesPredictedAppearanceAndCorrectsPose) {
   expect_pose_consistent(rig, s.T1);
 }
 
+TEST(ActiveSearch, RansacStopsOnceAnInlierWasDrawnWithTheConfidence) {
+  // (1 − ε)^tries ≤ 1 − confidence, ε = best support / candidates.
+  EXPECT_FALSE(ransac_may_stop(1, 24, 25, 0.99));  // ε 0.96: 0.04 > 0.01
+  EXPECT_TRUE(ransac_may_stop(2, 24, 25, 0.99));   // 0.0016
+  EXPECT_FALSE(ransac_may_stop(6, 10, 20, 0.99));  // ε 0.5: 0.0156
+  EXPECT_TRUE(ransac_may_stop(7, 10, 20, 0.99));   // 0.0078
+  EXPECT_FALSE(ransac_may_stop(2, 9, 10, 0.999));  // ε 0.9: 0.01 > 0.001
+  EXPECT_TRUE(ransac_may_stop(3, 9, 10, 0.999));
+  EXPECT_TRUE(ransac_may_stop(1, 20, 20, 0.99));   // every candidate supports the first hypothesis
+  EXPECT_FALSE(ransac_may_stop(1000, 20, 20, 0.0));  // off
+  EXPECT_FALSE(ransac_may_stop(1000, 1, 1, 0.99));   // no support set to correct with
+  EXPECT_FALSE(ransac_may_stop(1000, 5, 0, 0.99));
+  EXPECT_FALSE(ransac_may_stop(0, 20, 20, 0.99));
+}
+
+TEST(ActiveSearch, RansacDrawsFewerHypothesesWhenTheSupportIsLarge) {
+  // No outlier: the first matched hypothesis is supported by nearly every candidate, so the adaptive count stops
+  // after one or two; with the confidence off, every one of the ransac_ntries draws is a hypothesis. Both correct
+  // the pose as well.
+  for (const double confidence : {0.99, 0.0}) {
+    SCOPED_TRACE(confidence);
+    OutlierScene s;
+    Rig rig(s.T0);
+    ActiveSearchOptions o = test_options();
+    o.ransac_confidence = confidence;
+    ActiveSearchDataManager dm(o, rig.map_manager, 320, 240, 11);
+    init_known_depth_map(rig, dm, s.img0, 0.03, 0.01);
+    RawImage raw;
+    raw.image = s.img1.view();
+    slam::FrameStats stats;
+    dm.process(*rig.map, *rig.sensor, raw, 1, stats);
+    ASSERT_GE(stats.visible, 10);
+    if (confidence > 0.0) {
+      EXPECT_GE(stats.ransac_hypotheses, 1);
+      EXPECT_LE(stats.ransac_hypotheses, 2);
+    } else {
+      EXPECT_EQ(stats.ransac_hypotheses, o.ransac_ntries);
+    }
+    EXPECT_GE(stats.ransac_inliers, 5);
+    EXPECT_GE(stats.updated, 10);
+    expect_pose_consistent(rig, s.T1);
+  }
+}
+
 TEST(ActiveSearch, OnePointRansacRejectsPlantedOutlier) {
   OutlierScene s;
   Rig rig(s.T0);
@@ -322,14 +367,26 @@ TrackResult track_sequence(std::uint64_t seed, int n_frames) {
 
 TEST(ActiveSearch, TracksAMovingCameraDeterministically) {
   constexpr int kFrames = 45;
-  const TrackResult a = track_sequence(21, kFrames);
-  for (int k = 5; k < kFrames; ++k) EXPECT_GE(a.stats[static_cast<size_t>(k)].updated, 8) << "frame " << k;
   // Rotation is observable at once; translation up to the (weakly known) monocular scale: check its direction.
+  // The final attitude error varies with the seed's draws (RANSAC, grid) by a few mrad, and one seed in six or
+  // seven ends beyond 10 mrad (30 seeds, with 6 hypotheses a frame or the adaptive count alike): five seeds, their
+  // median within 10 mrad and none beyond 30.
   const double t_end = (kFrames - 1) / 30.0;
   const math::Pose T_end =
       pose_of({0.25 * t_end, 0.1 * std::sin(3.0 * t_end), 0.0}, {0.0, 0.05 * std::sin(2.0 * t_end), 0.0});
-  EXPECT_LT(a.est.back().q.angularDistance(T_end.q), 0.01);
-  EXPECT_GT(a.est.back().p.normalized().dot(T_end.p.normalized()), 0.95);
+  std::vector<double> attitude_errors;
+  for (std::uint64_t seed = 21; seed <= 25; ++seed) {
+    const TrackResult r = track_sequence(seed, kFrames);
+    for (int k = 5; k < kFrames; ++k) {
+      EXPECT_GE(r.stats[static_cast<size_t>(k)].updated, 8) << "seed " << seed << ", frame " << k;
+    }
+    attitude_errors.push_back(r.est.back().q.angularDistance(T_end.q));
+    EXPECT_LT(attitude_errors.back(), 0.03) << "seed " << seed;
+    EXPECT_GT(r.est.back().p.normalized().dot(T_end.p.normalized()), 0.95) << "seed " << seed;
+  }
+  std::nth_element(attitude_errors.begin(), attitude_errors.begin() + 2, attitude_errors.end());
+  EXPECT_LT(attitude_errors[2], 0.01);
+  const TrackResult a = track_sequence(21, kFrames);
   const TrackResult b = track_sequence(21, kFrames);
   for (int k = 0; k < kFrames; ++k) {
     EXPECT_EQ(a.est[static_cast<size_t>(k)].p, b.est[static_cast<size_t>(k)].p);
@@ -502,6 +559,8 @@ TEST(ActiveSearchBudget, TheBudgetKeyIsRangeChecked) {
   EXPECT_EQ(config_error_of("search: {time_budget_ms: -1}"),
             "cfg.yaml/search: time_budget_ms = -1 must be 0 (off) or in (0, 10000] ms");
   EXPECT_EQ(config_error_of("search: {time_budget_ms: 0.25}"), "(no error)");
+  EXPECT_EQ(config_error_of("search: {ransac_confidence: 1}"),
+            "cfg.yaml/search: ransac_confidence = 1 must be 0 (off) or in (0, 1)");
   ActiveSearchOptions o;
   o.time_budget_ms = 0.25;
   YAML::Node n = o.to_yaml();

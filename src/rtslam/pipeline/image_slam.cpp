@@ -281,6 +281,7 @@ struct ImageSlam::Impl final : slam::Observer {
     a.updated += b.updated;
     a.initialized += b.initialized;
     a.ransac_inliers += b.ransac_inliers;
+    a.ransac_hypotheses += b.ransac_hypotheses;
     a.reparametrized += b.reparametrized;
     a.removed += b.removed;
     a.evicted += b.evicted;

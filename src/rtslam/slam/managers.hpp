@@ -33,6 +33,7 @@ struct FrameStats {
   int updated = 0;
   int initialized = 0;
   int ransac_inliers = 0;
+  int ransac_hypotheses = 0;  // one-point RANSAC hypotheses evaluated (matched in their full ellipse)
   int reparametrized = 0;
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map

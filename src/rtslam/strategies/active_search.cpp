@@ -21,6 +21,13 @@ const PointDescriptor* point_descriptor(const slam::Landmark& lmk) {
   return p ? p->get() : nullptr;
 }
 
+bool ransac_may_stop(int hypotheses, int best_support, int candidates, double confidence) {
+  if (!(confidence > 0.0) || candidates <= 0 || best_support < 2 || hypotheses <= 0) return false;
+  const double outlier = 1.0 - std::min(1.0, static_cast<double>(best_support) / candidates);
+  // (1 − ε)^k ≤ 1 − confidence: that every hypothesis so far came from an outlier is at most that likely.
+  return std::pow(outlier, hypotheses) <= 1.0 - confidence;
+}
+
 void ActiveSearchOptions::validate(const std::string& where) const {
   require_bound(sigma_px > 0.0 && sigma_px <= 100.0, where, "sigma_px", sigma_px, "in (0, 100] px");
   require_bound(n_sigma > 0.0 && n_sigma <= 10.0, where, "n_sigma", n_sigma, "in (0, 10]");
@@ -29,6 +36,8 @@ void ActiveSearchOptions::validate(const std::string& where) const {
   require_bound(max_updates_ransac >= 0 && max_updates_ransac <= 32 && max_updates_ransac <= max_updates, where,
                 "max_updates_ransac", max_updates_ransac, "in [0, min(32, max_updates)]");
   require_bound(ransac_ntries >= 0 && ransac_ntries <= 1000, where, "ransac_ntries", ransac_ntries, "in [0, 1000]");
+  require_bound(ransac_confidence >= 0.0 && ransac_confidence < 1.0, where, "ransac_confidence", ransac_confidence,
+                "0 (off) or in (0, 1)");
   require_bound(ransac_low_innov_px >= 0.0 && ransac_low_innov_px <= 100.0, where, "ransac_low_innov_px",
                 ransac_low_innov_px, "in [0, 100] px");
   require_bound(gain_recomputations >= 1 && gain_recomputations <= 100, where, "gain_recomputations",
@@ -63,6 +72,7 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   map.get("max_updates", o.max_updates);
   map.get("max_updates_ransac", o.max_updates_ransac);
   map.get("ransac_ntries", o.ransac_ntries);
+  map.get("ransac_confidence", o.ransac_confidence);
   map.get("ransac_low_innov_px", o.ransac_low_innov_px);
   map.get("gain_recomputations", o.gain_recomputations);
   map.get("iterations", o.iterations);
@@ -104,6 +114,7 @@ YAML::Node ActiveSearchOptions::to_yaml() const {
   s["max_updates"] = max_updates;
   s["max_updates_ransac"] = max_updates_ransac;
   s["ransac_ntries"] = ransac_ntries;
+  s["ransac_confidence"] = ransac_confidence;
   s["ransac_low_innov_px"] = ransac_low_innov_px;
   s["gain_recomputations"] = gain_recomputations;
   s["iterations"] = iterations;
@@ -364,6 +375,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     for (Candidate* c : order_) untried_.push_back(c->slot);
     best_support_.clear();
     best_support_z_.clear();
+    int hypotheses = 0;
     for (int t = 0; t < opt_.ransac_ntries && !untried_.empty(); ++t) {
       if (!may_search()) break;  // the budget is spent: no new hypothesis (each needs a full-ellipse search)
       const auto k = std::uniform_int_distribution<size_t>(0, untried_.size() - 1)(rng_);
@@ -405,7 +417,14 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
         best_support_.swap(support_);
         best_support_z_.swap(support_z_);
       }
+      // Draws whose full search found nothing are known outliers: only the hypotheses count as tries.
+      ++hypotheses;
+      if (ransac_may_stop(hypotheses, static_cast<int>(best_support_.size()), static_cast<int>(candidates_.size()),
+                          opt_.ransac_confidence)) {
+        break;
+      }
     }
+    stats.ransac_hypotheses = hypotheses;
     if (best_support_.size() >= 2) {
       batch_.clear();
       const size_t n = std::min(best_support_.size(), static_cast<size_t>(opt_.max_updates_ransac));

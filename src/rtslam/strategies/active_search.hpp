@@ -9,6 +9,9 @@
 //     mean x_i = x ⊕ K_i (z_i − h_i) re-predicts every other candidate, which is searched only in the small box of
 //     half-size `ransac_low_innov_px` around that prediction; the largest support set (ties: the earlier) is
 //     corrected in one batched update when it holds at least 2 observations (at most `max_updates_ransac`);
+//     hypotheses stop early (Civera et al. 2010's adaptive count) once, with the best support's share ε of the
+//     candidates as the inlier ratio, the hypotheses so far (draws whose full search failed do not count) hold an
+//     inlier with probability `ransac_confidence`: 1 − (1 − ε)^k ≥ confidence (ransac_may_stop);
 //  3. the remaining candidates, by expected information (largest det S first), are re-predicted at the corrected
 //     state, searched in their (now small) n_sigma ellipses, gated by Mahalanobis distance (n_sigma²) and corrected
 //     in `gain_recomputations` batched rounds, until `max_updates` updates in the frame;
@@ -66,6 +69,12 @@ using PointDescriptorPtr = std::shared_ptr<const PointDescriptor>;
 /// The descriptor of a landmark made by this data manager (or by a known-landmark initialization), or nullptr.
 const PointDescriptor* point_descriptor(const slam::Landmark& lmk);
 
+/// One-point RANSAC's adaptive stop (Civera et al. 2010, after Fischler and Bolles): true when `hypotheses` drawn
+/// among `candidates`, of which at least `best_support` are inliers (the largest support found), hold at least one
+/// inlier with probability `confidence`: 1 − (1 − ε)^hypotheses ≥ confidence with ε = best_support / candidates. False when confidence is 0 (off), no candidate or support is known, or best_support < 2 (no support
+/// set to correct with yet).
+bool ransac_may_stop(int hypotheses, int best_support, int candidates, double confidence);
+
 struct ActiveSearchOptions {
   double sigma_px = 1.0;              // measurement noise (px), RT-SLAM PIX_NOISE
   bool second_order_depth = true;     // add the inverse-depth linearization term to R (slam/observation.hpp)
@@ -73,6 +82,7 @@ struct ActiveSearchOptions {
   int max_updates = 25;               // RT-SLAM N_UPDATES_TOTAL
   int max_updates_ransac = 22;        // RT-SLAM N_UPDATES_RANSAC (at most 32: one batched correction)
   int ransac_ntries = 6;              // RT-SLAM RANSAC_NTRIES (0 disables RANSAC: plain gated active search)
+  double ransac_confidence = 0.99;    // stop hypothesizing once an inlier was drawn with this probability (0: never)
   double ransac_low_innov_px = 1.0;   // RT-SLAM RANSAC_LOW_INNOV: half-size of the hypothesis support box (px)
   int gain_recomputations = 3;        // RT-SLAM N_RECOMP_GAINS
   int iterations = 1;                 // corrections relinearized this many times at most (1: EKF; > 1: iterated EKF)
@@ -99,7 +109,8 @@ struct ActiveSearchOptions {
   static constexpr double kMaxTimeBudgetMs = 10000.0;
   /// `where` names the options in messages (their config section, e.g. "search/zncc", or the file and section).
   void validate(const std::string& where = "search") const;
-  /// Keys: sigma_px, second_order_depth, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_low_innov_px,
+  /// Keys: sigma_px, second_order_depth, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_confidence,
+  /// ransac_low_innov_px,
   /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min, time_budget_ms,
   /// grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors; validates.
   static ActiveSearchOptions from_yaml(YamlMap& map);

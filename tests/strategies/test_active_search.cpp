@@ -208,7 +208,7 @@ TEST(ActiveSearch, MatchesPredictedAppearanceAndCorrectsPose) {
 }
 
 TEST(ActiveSearch, RansacStopsOnceAnInlierWasDrawnWithTheConfidence) {
-  // (1 − ε)^tries ≤ 1 − confidence, ε = best support / candidates.
+  // Stops when (1 − ε)^k ≤ 1 − confidence after k hypotheses, ε = best support / candidates.
   EXPECT_FALSE(ransac_may_stop(1, 24, 25, 0.99));  // ε 0.96: 0.04 > 0.01
   EXPECT_TRUE(ransac_may_stop(2, 24, 25, 0.99));   // 0.0016
   EXPECT_FALSE(ransac_may_stop(6, 10, 20, 0.99));  // ε 0.5: 0.0156

@@ -417,7 +417,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
         best_support_.swap(support_);
         best_support_z_.swap(support_z_);
       }
-      // Draws whose full search found nothing are known outliers: only the hypotheses count as tries.
+      // Only hypotheses count (a draw whose full search found nothing gave none to test).
       ++hypotheses;
       if (ransac_may_stop(hypotheses, static_cast<int>(best_support_.size()), static_cast<int>(candidates_.size()),
                           opt_.ransac_confidence)) {

@@ -71,8 +71,9 @@ const PointDescriptor* point_descriptor(const slam::Landmark& lmk);
 
 /// One-point RANSAC's adaptive stop (Civera et al. 2010, after Fischler and Bolles): true when `hypotheses` drawn
 /// among `candidates`, of which at least `best_support` are inliers (the largest support found), hold at least one
-/// inlier with probability `confidence`: 1 − (1 − ε)^hypotheses ≥ confidence with ε = best_support / candidates. False when confidence is 0 (off), no candidate or support is known, or best_support < 2 (no support
-/// set to correct with yet).
+/// inlier with probability `confidence`: 1 − (1 − ε)^hypotheses ≥ confidence with ε = best_support / candidates.
+/// False when confidence is 0 (off), no candidate or hypothesis is counted, or best_support < 2 (no support set to
+/// correct with yet).
 bool ransac_may_stop(int hypotheses, int best_support, int candidates, double confidence);
 
 struct ActiveSearchOptions {

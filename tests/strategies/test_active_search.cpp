@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <utility>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
@@ -375,18 +376,19 @@ TEST(ActiveSearch, TracksAMovingCameraDeterministically) {
   const math::Pose T_end =
       pose_of({0.25 * t_end, 0.1 * std::sin(3.0 * t_end), 0.0}, {0.0, 0.05 * std::sin(2.0 * t_end), 0.0});
   std::vector<double> attitude_errors;
+  TrackResult a;  // seed 21's, run again below for determinism
   for (std::uint64_t seed = 21; seed <= 25; ++seed) {
-    const TrackResult r = track_sequence(seed, kFrames);
+    TrackResult r = track_sequence(seed, kFrames);
     for (int k = 5; k < kFrames; ++k) {
       EXPECT_GE(r.stats[static_cast<size_t>(k)].updated, 8) << "seed " << seed << ", frame " << k;
     }
     attitude_errors.push_back(r.est.back().q.angularDistance(T_end.q));
     EXPECT_LT(attitude_errors.back(), 0.03) << "seed " << seed;
     EXPECT_GT(r.est.back().p.normalized().dot(T_end.p.normalized()), 0.95) << "seed " << seed;
+    if (seed == 21) a = std::move(r);
   }
   std::nth_element(attitude_errors.begin(), attitude_errors.begin() + 2, attitude_errors.end());
   EXPECT_LT(attitude_errors[2], 0.01);
-  const TrackResult a = track_sequence(21, kFrames);
   const TrackResult b = track_sequence(21, kFrames);
   for (int k = 0; k < kFrames; ++k) {
     EXPECT_EQ(a.est[static_cast<size_t>(k)].p, b.est[static_cast<size_t>(k)].p);

@@ -67,12 +67,13 @@ void register_simulate(CLI::App& app) {
   auto* sub = app.add_subcommand(
       "simulate", "Simulate a camera/IMU sequence with exact ground truth and write it as an EuRoC folder");
   sub->add_option("--preset", args->preset,
-                  "built-in preset (handheld, high-dynamic, hall) or a preset YAML file (see config/sim/)")
+                  "built-in preset (handheld, high-dynamic, hall, ground) or a preset YAML file (see config/sim/)")
       ->capture_default_str();
   sub->add_option("--world", args->world, "world preset (room, small-room, hall) or world YAML file");
   sub->add_option("--trajectory", args->trajectory,
-                  "handheld, high-dynamic, follow:FILE (TUM text or EuRoC CSV, smoothed, synthetic IMU) or recorded:DIR "
-                  "(an EuRoC folder's recorded states and recorded IMU, images rendered at the recorded times)");
+                  "handheld, high-dynamic, ground, follow:FILE (TUM text or EuRoC CSV, smoothed, synthetic IMU) or "
+                  "recorded:DIR (an EuRoC folder's recorded states and recorded IMU, images rendered at the recorded "
+                  "times)");
   sub->add_option("--start-offset", args->start_offset_s,
                   "follow/recorded trajectories: start this many seconds into the recording");
   sub->add_flag("--stereo", args->stereo, "render camera 1 too (EuRoC cam1, or the recorded folder's cam1)");

@@ -237,6 +237,8 @@ TEST(Simulation, PresetFilesMatchTheBuiltInPresets) {
     const SimConfig a = SimConfig::preset(name), b = SimConfig::load(file);
     EXPECT_EQ(a.name, b.name);
     EXPECT_EQ(a.trajectory, b.trajectory);
+    EXPECT_EQ(a.ground_speed_mps, b.ground_speed_mps);
+    EXPECT_EQ(a.odometry.enabled, b.odometry.enabled);
     EXPECT_EQ(a.duration_s, b.duration_s);
     EXPECT_EQ(a.seed, b.seed);
     EXPECT_EQ(a.camera.rate_hz, b.camera.rate_hz);

@@ -107,6 +107,43 @@ TEST(WaveTrajectory, HighDynamicReachesThePaperExtremes) {
   EXPECT_LT(traj->at(0).w_R.norm(), 1e-12);
 }
 
+TEST(GroundTrajectory, DerivativesMatchFiniteDifferences) {
+  // Through the rest, the ramp's start and end (C² joins) and the laps, on an elongated ellipse (the heading's
+  // second derivative is largest there), both directions of travel.
+  GroundTrajectoryParams p;
+  p.center = Vector3d(1.0, -2.0, 0.5);
+  p.a = 4.0;
+  p.b = 1.5;
+  p.phase = 0.7;
+  for (double rate : {0.3, -0.3}) {
+    p.rate = rate;
+    const GroundTrajectory g(p);
+    for (double t : {0.5, 1.0, 1.3, 2.0, 2.9, 3.0, 3.2, 7.7, 14.1, 30.5, 47.0})
+      expect_derivatives_match(g, from_seconds(t), 100'000, 1e-5, 1e-6);
+  }
+}
+
+TEST(GroundTrajectory, DrivesLevelLookingWhereItGoes) {
+  const auto g = make_ground(4, Vector3d(0, 0, 0.5), Eigen::Vector2d(16, 12), 0.5, 60.0);
+  EXPECT_LT(g->at(0).v_WR.norm(), 1e-12);  // at rest first
+  double path = 0.0;
+  Vector3d prev = g->at(0).p_WR;
+  for (TimeNs t = from_seconds(3.5); t <= g->t_end(); t += 100'000'000) {
+    const KinematicState s = g->at(t);
+    EXPECT_NEAR(s.p_WR.z(), 0.5, 1e-12);
+    const Eigen::Matrix3d R = s.q_WR.toRotationMatrix();
+    EXPECT_LT((R.col(0) - Vector3d::UnitZ()).norm(), 1e-9);                     // x up: no pitch, no roll
+    EXPECT_GT(R.col(2).dot(s.v_WR.normalized()), 1.0 - 1e-9) << to_seconds(t);  // z (the camera) forward
+    EXPECT_NEAR(s.w_R.y(), 0.0, 1e-12);
+    EXPECT_NEAR(s.w_R.z(), 0.0, 1e-12);
+    // Inside 0.3 × the footprint (with the ellipse's semi-axes 4.8 m and 3.6 m).
+    EXPECT_LE(std::pow(s.p_WR.x() / 4.8, 2) + std::pow(s.p_WR.y() / 3.6, 2), 1.0 + 1e-9);
+    path += (s.p_WR - prev).norm();
+    prev = s.p_WR;
+  }
+  EXPECT_NEAR(path / (to_seconds(g->t_end()) - 3.5), 0.5, 0.1);  // about the mean speed asked
+}
+
 TEST(SplineTrajectory, DerivativesMatchFiniteDifferencesAndReproducesSmoothMotion) {
   // Control poses sampled from a smooth wave trajectory: the spline must stay close and have exact derivatives.
   const auto ref = make_handheld(5, Vector3d::Zero(), 30.0);

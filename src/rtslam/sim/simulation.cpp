@@ -77,7 +77,7 @@ io::CameraCalibration SimConfig::euroc_cam1() {
   return c;
 }
 
-std::vector<std::string> SimConfig::preset_names() { return {"handheld", "high-dynamic", "hall"}; }
+std::vector<std::string> SimConfig::preset_names() { return {"handheld", "high-dynamic", "hall", "ground"}; }
 
 SimConfig SimConfig::preset(const std::string& name) {
   SimConfig c;
@@ -91,8 +91,13 @@ SimConfig SimConfig::preset(const std::string& name) {
     c.render.exposure_s = 0.003;
   } else if (name == "hall") {
     c.world = WorldConfig::preset("hall");
+  } else if (name == "ground") {
+    c.world = WorldConfig::preset("hall");
+    c.trajectory = "ground";
+    c.odometry.enabled = true;  // a wheeled robot: its wheel odometry, with the default noise
   } else {
-    throw ConfigError(fmt::format("simulation preset '{}' is unknown (known: handheld, high-dynamic, hall)", name));
+    throw ConfigError(
+        fmt::format("simulation preset '{}' is unknown (known: handheld, high-dynamic, hall, ground)", name));
   }
   return c;
 }
@@ -135,6 +140,7 @@ SimConfig SimConfig::from_yaml(YamlMap& m, SimConfig c, const std::string& dir) 
   if (c.trajectory.rfind("follow:", 0) == 0) c.trajectory = "follow:" + resolve(c.trajectory.substr(7), dir);
   if (c.recorded()) c.trajectory = "recorded:" + resolve(c.trajectory.substr(9), dir);
   m.get("follow_knot_spacing", c.follow_knot_spacing_s);
+  m.get("ground_speed", c.ground_speed_mps);
   m.get("start_offset", c.start_offset_s);
   m.get("stereo", c.stereo);
   if (m.has("world")) {
@@ -213,13 +219,16 @@ void SimConfig::validate() const {
                 follow_knot_spacing_s, "in [0.005, 1] s");
   require_bound(camera.rate_hz > 0.0 && camera.rate_hz <= 1000.0, where, "camera.rate_hz", camera.rate_hz,
                 "in (0, 1000] Hz");
-  if (trajectory != "handheld" && trajectory != "high-dynamic" && trajectory.rfind("follow:", 0) != 0 && !recorded())
-    throw ConfigError(fmt::format("{}: trajectory = '{}' must be handheld, high-dynamic, follow:FILE or recorded:DIR",
-                                  where, trajectory));
+  if (trajectory != "handheld" && trajectory != "high-dynamic" && trajectory != "ground" &&
+      trajectory.rfind("follow:", 0) != 0 && !recorded())
+    throw ConfigError(fmt::format(
+        "{}: trajectory = '{}' must be handheld, high-dynamic, ground, follow:FILE or recorded:DIR", where, trajectory));
+  require_bound(ground_speed_mps > 0.0 && ground_speed_mps <= 10.0, where, "ground_speed", ground_speed_mps,
+                "in (0, 10] m/s");
   if (trajectory == "follow:") throw ConfigError(fmt::format("{}: trajectory 'follow:' needs a file", where));
   if (trajectory == "recorded:") throw ConfigError(fmt::format("{}: trajectory 'recorded:' needs a folder", where));
   require_bound(start_offset_s >= 0.0 && start_offset_s < 1e6, where, "start_offset", start_offset_s, "in [0, 1e6) s");
-  if (start_offset_s > 0.0 && (trajectory == "handheld" || trajectory == "high-dynamic"))
+  if (start_offset_s > 0.0 && (trajectory == "handheld" || trajectory == "high-dynamic" || trajectory == "ground"))
     throw ConfigError(fmt::format("{}: start_offset applies to follow:FILE and recorded:DIR trajectories only", where));
   if (recorded() && !imu_enabled)
     throw ConfigError(fmt::format("{}: a recorded:DIR trajectory replays the recorded IMU: imu.enabled must be true", where));
@@ -293,6 +302,11 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
     trajectory_ = std::make_unique<RecordedTrajectory>(*recorded_states);
   } else if (follow) {
     trajectory_ = make_follow(config_.trajectory.substr(7), config_.follow_knot_spacing_s);
+  } else if (config_.trajectory == "ground") {
+    const WorldConfig& w = config_.world;
+    const Vector3d center(w.room_center.x(), w.room_center.y(), w.floor_z + std::min(0.5, 0.5 * w.room_size.z()));
+    trajectory_ = make_ground(traj_seed, center, w.room_size.head<2>(), config_.ground_speed_mps,
+                              config_.duration_s + 1.0, t_start);
   } else {
     const WorldConfig& w = config_.world;
     const Vector3d center(w.room_center.x(), w.room_center.y(), w.floor_z + std::min(1.5, 0.5 * w.room_size.z()));
@@ -311,7 +325,7 @@ Simulation::Simulation(const SimConfig& config) : config_(config) {
   // The world must contain the path with some room around it.
   std::vector<Vector3d> path;
   for (TimeNs t = t0; t <= t1; t += 50'000'000) path.push_back(trajectory_->at(t).p_WR);
-  if (follow || recorded) {
+  if (follow || recorded || config_.trajectory == "ground") {  // a ground robot's laps clear their own way
     const int removed = config_.world.fit_to_points(path, 1.0, 0.3);
     log->info("world fitted around {}: room {:.1f} x {:.1f} x {:.1f} m, {} obstacle(s) removed from the path",
               trajectory_->describe(), config_.world.room_size.x(), config_.world.room_size.y(),

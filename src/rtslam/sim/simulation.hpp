@@ -48,7 +48,8 @@ struct SimConfig {
   std::optional<std::uint64_t> trajectory_seed;  // default: seed
   double duration_s = 30.0;
   double start_time_s = 1.0;         // timestamp of the first sample for synthetic trajectories
-  std::string trajectory = "handheld";  // handheld | high-dynamic | follow:FILE | recorded:DIR
+  std::string trajectory = "handheld";  // handheld | high-dynamic | ground | follow:FILE | recorded:DIR
+  double ground_speed_mps = 0.5;     // ground: mean speed of the laps (m/s)
   double start_offset_s = 0.0;       // follow/recorded: start this many seconds after the recording's first pose
   bool stereo = false;               // also render camera 1 (camera1; a recorded folder's cam1)
   double follow_knot_spacing_s = 0.05;

@@ -316,6 +316,70 @@ std::unique_ptr<ContinuousTrajectory> make_handheld(std::uint64_t seed, const Ve
   return std::make_unique<WaveTrajectory>(std::move(p));
 }
 
+GroundTrajectory::GroundTrajectory(GroundTrajectoryParams params) : params_(std::move(params)) {
+  const GroundTrajectoryParams& p = params_;
+  if (!(p.a > 0.0 && p.b > 0.0 && std::isfinite(p.a) && std::isfinite(p.b)))
+    throw ConfigError(fmt::format("ground trajectory: semi-axes must be positive (got {}, {})", p.a, p.b));
+  if (!(p.rest_s >= 0.0 && p.ramp_s > 0.0 && std::isfinite(p.rate)))
+    throw ConfigError("ground trajectory: rest_s >= 0, ramp_s > 0 and a finite rate are required");
+}
+
+KinematicState GroundTrajectory::at(TimeNs t_ns) const {
+  const GroundTrajectoryParams& p = params_;
+  const double t = std::clamp(to_seconds(t_ns - p.t_begin), 0.0, p.duration_s);
+  // φ̇ = rate · smootherstep(τ), τ = (t − rest) / ramp; φ is its integral (τ⁶ − 3τ⁵ + 2.5τ⁴ over the ramp).
+  double phi = p.phase, dphi = 0.0, ddphi = 0.0;
+  if (t > p.rest_s) {
+    const double tau = std::min((t - p.rest_s) / p.ramp_s, 1.0);
+    double sv = 0.0, s1 = 0.0, s2 = 0.0;
+    smootherstep(tau, sv, s1, s2);
+    const double integral = p.ramp_s * (std::pow(tau, 6) - 3.0 * std::pow(tau, 5) + 2.5 * std::pow(tau, 4));
+    phi += p.rate * (integral + std::max(0.0, t - p.rest_s - p.ramp_s));
+    dphi = p.rate * sv;
+    ddphi = tau < 1.0 ? p.rate * s1 / p.ramp_s : 0.0;
+  }
+  const double c = std::cos(phi), s = std::sin(phi);
+  KinematicState k;
+  k.t = t_ns;
+  k.p_WR = p.center + Vector3d(p.a * c, p.b * s, 0.0);
+  const Vector3d d1(-p.a * s, p.b * c, 0.0);   // ∂p/∂φ
+  const Vector3d d2(-p.a * c, -p.b * s, 0.0);  // ∂²p/∂φ²
+  k.v_WR = dphi * d1;
+  k.a_WR = ddphi * d1 + dphi * dphi * d2;
+  // Heading along ∂p/∂φ times the direction of travel (at rest: the direction it will drive).
+  const double dir = p.rate >= 0.0 ? 1.0 : -1.0;
+  const double psi = std::atan2(dir * d1.y(), dir * d1.x());
+  // dψ/dφ = a b / D, D = a² sin²φ + b² cos²φ; d²ψ/dφ² = −a b (a² − b²) sin 2φ / D².
+  const double D = p.a * p.a * s * s + p.b * p.b * c * c;
+  const double g1 = p.a * p.b / D;
+  const double g2 = -p.a * p.b * (p.a * p.a - p.b * p.b) * std::sin(2.0 * phi) / (D * D);
+  const double dpsi = g1 * dphi;
+  const double ddpsi = g2 * dphi * dphi + g1 * ddphi;
+  k.q_WR = Quaterniond(Eigen::AngleAxisd(psi, Vector3d::UnitZ()).toRotationMatrix() * WaveTrajectory::base_rotation())
+               .normalized();
+  // R's x axis is W's z: a yaw rate is a body rate about x.
+  k.w_R = Vector3d(dpsi, 0.0, 0.0);
+  k.dw_R = Vector3d(ddpsi, 0.0, 0.0);
+  return k;
+}
+
+std::unique_ptr<ContinuousTrajectory> make_ground(std::uint64_t seed, const Vector3d& center,
+                                                  const Eigen::Vector2d& room_size, double speed_mps,
+                                                  double duration_s, TimeNs t_begin) {
+  Rng rng(seed ^ 0x67726f756e64ULL);  // "ground"
+  GroundTrajectoryParams p;
+  p.center = center;
+  p.a = 0.3 * room_size.x();
+  p.b = 0.3 * room_size.y();
+  p.phase = randu(rng, -std::numbers::pi, std::numbers::pi);
+  const double direction = randu(rng, 0.0, 1.0) < 0.5 ? -1.0 : 1.0;
+  p.rate = direction * speed_mps / (0.5 * (p.a + p.b));
+  p.t_begin = t_begin;
+  p.duration_s = duration_s;
+  p.name = fmt::format("ground(seed={})", seed);
+  return std::make_unique<GroundTrajectory>(std::move(p));
+}
+
 std::unique_ptr<ContinuousTrajectory> make_high_dynamic(std::uint64_t seed, const Vector3d& center,
                                                         double duration_s, TimeNs t_begin) {
   Rng rng(seed ^ 0x6869676864796eULL);  // "highdyn"

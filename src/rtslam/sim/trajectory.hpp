@@ -159,6 +159,41 @@ std::unique_ptr<ContinuousTrajectory> make_handheld(std::uint64_t seed, const Ei
 std::unique_ptr<ContinuousTrajectory> make_high_dynamic(std::uint64_t seed, const Eigen::Vector3d& center,
                                                         double duration_s, TimeNs t_begin = 0);
 
+/// A wheeled ground robot driving laps of an ellipse at a constant height (the camera's, looking where it drives):
+/// p = center + (a cos φ, b sin φ, 0), heading ψ = the direction of motion, R_WR = Rz(ψ) R_base (x up, z forward;
+/// no pitch or roll), so the body rate is ψ̇ about R's x. φ(t) = φ0 ± ∫ φ̇ with φ̇ rising smoothly (smootherstep, C²)
+/// from 0 to `rate` rad/s over [rest_s, rest_s + ramp_s]: at rest first, then the same lap over and over (faster
+/// along the long sides: φ̇ is constant, not the speed). Exact first and second derivatives.
+struct GroundTrajectoryParams {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double a = 2.0, b = 1.5;  // semi-axes along W's x and y (m)
+  double rate = 0.25;       // φ̇ after the ramp (rad/s); the sign sets the direction of travel
+  double phase = 0.0;       // φ at the start (rad)
+  double rest_s = 1.0, ramp_s = 2.0;
+  TimeNs t_begin = 0;
+  double duration_s = 60.0;
+  std::string name = "ground";
+};
+
+class GroundTrajectory final : public ContinuousTrajectory {
+ public:
+  explicit GroundTrajectory(GroundTrajectoryParams params);
+  KinematicState at(TimeNs t) const override;
+  TimeNs t_begin() const override { return params_.t_begin; }
+  TimeNs t_end() const override { return params_.t_begin + from_seconds(params_.duration_s); }
+  std::string describe() const override { return params_.name; }
+
+ private:
+  GroundTrajectoryParams params_;
+};
+
+/// The `ground` preset's motion: laps of an ellipse with semi-axes 0.3 × the room's footprint around `center`
+/// (its height: the camera's, 0.5 m above the floor) at about `speed_mps` on average, starting point and direction
+/// drawn from `seed`, 1 s at rest and a 2 s start.
+std::unique_ptr<ContinuousTrajectory> make_ground(std::uint64_t seed, const Eigen::Vector3d& center,
+                                                  const Eigen::Vector2d& room_size, double speed_mps,
+                                                  double duration_s, TimeNs t_begin = 0);
+
 /// A recorded trajectory (TUM text or EuRoC CSV, read by io::read_trajectory) smoothed by a cubic B-spline with
 /// knot spacing `knot_dt_s`.
 std::unique_ptr<ContinuousTrajectory> make_follow(const std::string& path, double knot_dt_s = 0.05);

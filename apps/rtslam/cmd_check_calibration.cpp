@@ -61,7 +61,7 @@ std::optional<calib::CheckResult> calibration_prepass(const std::string& dataset
                                                       const pipeline::ImageSlamOptions& o, bool simulated,
                                                       std::string& skipped) {
   if (o.robot != "inertial") {
-    skipped = "constant-velocity robot: the IMU is not used";
+    skipped = o.robot + " robot: the IMU is not used";
     return std::nullopt;
   }
   if (!o.imu.calibration_check.enabled) {

@@ -1,8 +1,11 @@
-// Monocular SLAM on an odometry-driven robot (slam/robot: odometry) on the simulator's rendered handheld sequence
-// with its synthesized wheel odometry (sim/odometry.hpp, default noise): the odometry gives the scale, the camera
-// bounds the drift. Issue 15 acceptance "odometry robot ... has a convergence test": the trajectory error after an
-// SE(3) alignment (no scale) is below 2 % of the path and below the odometry's own dead reckoning over the same
-// readings, and the Sim(3) scale is within 3 % of 1.
+// SLAM on an odometry-driven robot (slam/robot: odometry) on the simulator's rendered sequences with their
+// synthesized wheel odometry (sim/odometry.hpp, default noise). Issue 15 acceptance "odometry robot ... has a
+// convergence test":
+//  - one camera on the hand-held sequence: the odometry gives the scale, the camera bounds the drift: the trajectory
+//    error after an SE(3) alignment (no scale) below 2 % of the path and below the odometry's own dead reckoning over
+//    the same readings, the Sim(3) scale within 3 % of 1 (fails: issue 15, docs/odometry-scale.md);
+//  - two cameras on the `ground` preset (a wheeled robot, its natural use): the error below half the dead
+//    reckoning's and 1 % of the path, the scale within 1 %.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -41,27 +44,52 @@ eval::EvalResult evaluate(const Trajectory& est, const Trajectory& gt) {
   return eval::evaluate(est, gt, eo);
 }
 
-TEST(OdometrySlam, MonocularCameraBoundsTheOdometryDriftAtTheOdometryScale) {
-  ImageSlamOptions o = load_image_slam_config(kConfig);
+struct OdometryRun {
+  ImageSlamResult result;
+  eval::EvalResult slam, odometry;
+};
+
+// 20 s of the simulator preset of `config` (or `preset` when given) with the robot driven by its wheel odometry.
+OdometryRun run_with_odometry(const std::string& config, const std::string& preset = {}) {
+  ImageSlamOptions o = load_image_slam_config(config);
   o.robot = "odometry";
+  if (!preset.empty()) o.sim_preset = preset;
   sim::SimConfig sc = sim::SimConfig::load(o.sim_preset);
   sc.seed = o.seed;
   sc.duration_s = 20.0;
   sc.odometry.enabled = true;  // default noise, the filter's default model
+  if (o.camera_indices().size() > 1) sc.stereo = true;
   const auto simulation = sim::Simulation::create(sc);
   io::Dataset ds = simulation->make_dataset();
-  const ImageSlamResult r = run_image_slam(ds, o);
-  const eval::EvalResult slam = evaluate(r.estimate, *ds.ground_truth);
-  const eval::EvalResult odo = evaluate(dead_reckoning(simulation->odometry()), *ds.ground_truth);
-  std::printf("odometry + mono, %zu frames over %.1f m: SE(3) ATE %.4f m (%.2f %%), Sim(3) scale %.4f; odometry "
-              "alone: ATE %.4f m (%.2f %%); %d landmarks, %d resets\n",
-              r.frames.size(), slam.path_length_m, slam.ate.trans_m.rmse, 100.0 * slam.ate.trans_m.rmse / slam.path_length_m,
-              slam.sim3_scale, odo.ate.trans_m.rmse, 100.0 * odo.ate.trans_m.rmse / odo.path_length_m,
-              r.landmarks_final, r.resets);
-  EXPECT_EQ(r.resets, 0);
-  EXPECT_LT(slam.ate.trans_m.rmse, 0.02 * slam.path_length_m);
-  EXPECT_LT(slam.ate.trans_m.rmse, odo.ate.trans_m.rmse);
-  EXPECT_NEAR(slam.sim3_scale, 1.0, 0.03);
+  OdometryRun r;
+  r.result = run_image_slam(ds, o);
+  r.slam = evaluate(r.result.estimate, *ds.ground_truth);
+  r.odometry = evaluate(dead_reckoning(simulation->odometry()), *ds.ground_truth);
+  std::printf("%s%s, odometry + %zu camera(s), %zu frames over %.1f m: SE(3) ATE %.4f m (%.2f %%), Sim(3) scale "
+              "%.4f; odometry alone: ATE %.4f m (%.2f %%); %d landmarks, %d resets\n",
+              config.c_str(), preset.empty() ? "" : (" on " + preset).c_str(), o.camera_indices().size(),
+              r.result.frames.size(), r.slam.path_length_m, r.slam.ate.trans_m.rmse,
+              100.0 * r.slam.ate.trans_m.rmse / r.slam.path_length_m, r.slam.sim3_scale, r.odometry.ate.trans_m.rmse,
+              100.0 * r.odometry.ate.trans_m.rmse / r.odometry.path_length_m, r.result.landmarks_final,
+              r.result.resets);
+  return r;
+}
+
+TEST(OdometrySlam, MonocularCameraBoundsTheOdometryDriftAtTheOdometryScale) {
+  const OdometryRun r = run_with_odometry(kConfig);
+  EXPECT_EQ(r.result.resets, 0);
+  EXPECT_LT(r.slam.ate.trans_m.rmse, 0.02 * r.slam.path_length_m);
+  EXPECT_LT(r.slam.ate.trans_m.rmse, r.odometry.ate.trans_m.rmse);
+  EXPECT_NEAR(r.slam.sim3_scale, 1.0, 0.03);
+}
+
+TEST(OdometrySlam, TwoCamerasBoundAGroundRobotsOdometryDrift) {
+  const OdometryRun r = run_with_odometry(RTSLAM_SOURCE_DIR "/config/sim_stereo.yaml", "ground");
+  EXPECT_EQ(r.result.resets, 0);
+  EXPECT_GT(r.slam.path_length_m, 8.0);  // laps at 0.5 m/s
+  EXPECT_LT(r.slam.ate.trans_m.rmse, 0.01 * r.slam.path_length_m);
+  EXPECT_LT(r.slam.ate.trans_m.rmse, 0.5 * r.odometry.ate.trans_m.rmse);
+  EXPECT_NEAR(r.slam.sim3_scale, 1.0, 0.01);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
 #include "rtslam/pipeline/starters.hpp"
 #include "rtslam/slam/absolute_sensor.hpp"
 #include "rtslam/slam/odometry_robot.hpp"
@@ -72,6 +73,13 @@ Registry Registry::builtin() {
       [](const BuildContext& c) -> std::unique_ptr<slam::Robot> {
         if (!c.options.known_landmarks.empty()) {
           throw ConfigError("slam/known_landmarks is not supported with slam/robot = odometry yet");
+        }
+        if (c.options.camera_indices().size() == 1 && !c.options.position_sensor.enabled &&
+            !c.options.pose_sensor.enabled) {
+          logger("slam")->warn(
+              "slam/robot: odometry with one camera: the map's scale, and with it the trajectory, can come out worse "
+              "than the odometry alone (issue 15, docs/configuration.md section odometry); two cameras "
+              "(slam/cameras: [0, 1]) or an absolute sensor give the scale");
         }
         return std::make_unique<slam::OdometryRobot>(c.options.odometry);
       },

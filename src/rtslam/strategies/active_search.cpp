@@ -307,6 +307,8 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   for (const auto& l : map.landmarks()) {
     slam::Observation* o = l->observation_of(sensor);
     if (o == nullptr) continue;
+    // Out of the image (most of a global map): the projection alone says so; Jacobians only for the visible.
+    if (!slam::predict_observation(state, state.mean_vector(), *o, opt_.margin_px, false)) continue;
     if (!slam::predict_observation(state, state.mean_vector(), *o, opt_.margin_px, true, lin())) continue;
     slam::compute_innovation_covariance(state, *o, opt_.sigma_px, opt_.second_order_depth);
     o->counters.last_visible_frame = frame;

@@ -185,6 +185,20 @@ TEST(BadInput, NanInImu) {
   EXPECT_EQ(r.stats.imu_samples, static_cast<size_t>(kImu - 1));
 }
 
+TEST(BadInput, ImuValueBeyondDoubleRange) {
+  // Review 27 Nov: 1e400 was read as 0 and the run went on.
+  TempDir dir;
+  const std::string root = make_dataset(dir);
+  const std::string csv = root + "/mav0/imu0/data.csv";
+  auto lines = lines_of(csv);
+  lines[11] = fmt::format("{},0,0,0,9.81,0,1e400", kT0 + 10 * 5'000'000);
+  write_lines(csv, lines);
+  expect_error<IoError>(root, {"imu0/data.csv:12:", "1e400"});
+  const Result r = run(root, BadInputPolicy::Skip);
+  EXPECT_EQ(r.stats.malformed_lines, 1u);
+  EXPECT_EQ(r.stats.imu_samples, static_cast<size_t>(kImu - 1));
+}
+
 TEST(BadInput, ImuDropoutLongerThanThreeSamples) {
   TempDir dir;
   const std::string root = make_dataset(dir);

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <filesystem>
 
 #include "io_test_util.hpp"
@@ -85,6 +87,23 @@ TEST(Text, DoubleFormatRoundTripsEveryBit) {
     ASSERT_TRUE(parse_double(format_double(x), y));
     EXPECT_TRUE(bits_equal(x, y)) << format_double(x);
   }
+}
+
+TEST(Text, DoubleOutOfRangeIsRefusedNotZero) {
+  // Review 27 Nov: from_chars leaves its output unset out of range, and "1e400" was read as the caller's 0.
+  double y = 42.0;
+  EXPECT_FALSE(parse_double("1e400", y));
+  EXPECT_FALSE(parse_double("-2e308", y));
+  EXPECT_EQ(y, 42.0);
+  ASSERT_TRUE(parse_double("1e-400", y));  // below the subnormals: zero, as any reader would round it
+  EXPECT_EQ(y, 0.0);
+  ASSERT_TRUE(parse_double("-1e-400", y));
+  EXPECT_TRUE(y == 0.0 && std::signbit(y));
+  ASSERT_TRUE(parse_double("1e-310", y));  // subnormal
+  EXPECT_EQ(y, 1e-310);
+  ASSERT_TRUE(parse_double("1.7976931348623157e308", y));
+  EXPECT_EQ(y, std::numeric_limits<double>::max());
+  EXPECT_FALSE(parse_double("1e400x", y));
 }
 
 TEST(TrajectoryIo, TumRoundTripIsBitIdenticalWithEightColumns) {

@@ -57,10 +57,21 @@ bool parse_double(std::string_view s, double& value) {
   s = trim(s);
   if (s.empty()) return false;
   if (s.front() == '+') s.remove_prefix(1);
-  const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
-  // from_chars reports out-of-range for subnormal results; accept those as parsed values.
-  if (ec == std::errc::result_out_of_range) return ptr == s.data() + s.size() && std::isfinite(value);
-  return ec == std::errc() && ptr == s.data() + s.size();
+  double v = 0.0;
+  const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ptr != s.data() + s.size()) return false;
+  if (ec == std::errc::result_out_of_range) {
+    // from_chars leaves v unset on overflow (1e400) and on underflow below the subnormals (1e-400): strtod tells
+    // them apart. An overflow is not a number we can use; an underflow is ±0 (or the subnormal strtod gives).
+    const std::string copy(s);
+    const double r = std::strtod(copy.c_str(), nullptr);
+    if (!std::isfinite(r)) return false;
+    value = r;
+    return true;
+  }
+  if (ec != std::errc()) return false;
+  value = v;
+  return true;
 }
 
 bool parse_int64(std::string_view s, std::int64_t& value) {

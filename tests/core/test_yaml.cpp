@@ -47,6 +47,41 @@ TEST(LoadYamlFile, ADirectoryIsOneIoErrorNamingIt) {
   EXPECT_EQ(message_of([&] { load_yaml_file(dir.string()); }), dir.string() + ": is a directory, not a YAML file");
 }
 
+TEST(LoadYamlFile, AKeyGivenTwiceIsAnErrorNamingLineAndKeyPath) {
+  // Review 27 Nov: yaml-cpp keeps both, a lookup sees the first, and the second was ignored silently.
+  const auto path = (std::filesystem::temp_directory_path() / "rtslam_test_dup_keys.yaml").string();
+  {
+    std::ofstream out(path);
+    out << "search:\n  sigma_px: 0.5\n  grid: {cells_x: 4}\n  sigma_px: 200\n";
+  }
+  EXPECT_EQ(message_of([&] { load_yaml_file(path); }),
+            path + ": line 4: key 'search/sigma_px' given twice (only one value can be used)");
+  {
+    std::ofstream out(path);
+    out << "slam: {seed: 1}\nlist:\n  - {a: 1, a: 2}\nslam: {seed: 2}\n";
+  }
+  EXPECT_EQ(message_of([&] { load_yaml_file(path); }),
+            path + ": line 3: key 'list[0]/a' given twice (only one value can be used)");
+  {
+    std::ofstream out(path);
+    out << "a: {x: 1}\nb: {x: 2}\n";  // the same key in two mappings is fine
+  }
+  EXPECT_TRUE(load_yaml_file(path).IsMap());
+  std::filesystem::remove(path);
+}
+
+TEST(LoadYamlFile, AFileWithNoSettingsIsAnError) {
+  const auto path = (std::filesystem::temp_directory_path() / "rtslam_test_empty.yaml").string();
+  for (const char* text : {"", "# only a comment\n\n"}) {
+    {
+      std::ofstream out(path);
+      out << text;
+    }
+    EXPECT_EQ(message_of([&] { load_yaml_file(path); }), path + ": no settings in the file (empty, or only comments)");
+  }
+  std::filesystem::remove(path);
+}
+
 TEST(CheckedTime, SecondsBeyondInt64AndOverflowingSumsAreRefused) {
   EXPECT_EQ(from_seconds_checked(1.5), 1'500'000'000);
   EXPECT_FALSE(from_seconds_checked(1e10).has_value());

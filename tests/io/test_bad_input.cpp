@@ -249,6 +249,14 @@ TEST(BadInput, MalformedSensorYaml) {
   expect_error<ConfigError>(root, {yaml, "malformed YAML at line"});
 }
 
+TEST(BadInput, SensorYamlKeyTwice) {
+  TempDir dir;
+  const std::string root = make_dataset(dir);
+  const std::string yaml = root + "/mav0/cam0/sensor.yaml";
+  write_text(yaml, read_text(yaml) + "intrinsics: [1, 2, 3, 4]\n");
+  expect_error<ConfigError>(root, {yaml, "key 'intrinsics' given twice"});
+}
+
 TEST(BadInput, UnknownDistortionModel) {
   TempDir dir;
   const std::string root = make_dataset(dir);

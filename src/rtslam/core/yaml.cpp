@@ -2,20 +2,51 @@
 
 #include <cmath>
 #include <filesystem>
+#include <set>
 
 namespace rtslam {
 
 YAML::Node load_yaml_file(const std::string& path) {
   if (!std::filesystem::exists(path)) throw IoError(fmt::format("{}: file not found", path));
   if (std::filesystem::is_directory(path)) throw IoError(fmt::format("{}: is a directory, not a YAML file", path));
+  YAML::Node node;
   try {
-    return YAML::LoadFile(path);
+    node = YAML::LoadFile(path);
   } catch (const YAML::ParserException& e) {
     throw ConfigError(fmt::format("{}: malformed YAML at line {}: {}", path, e.mark.line + 1, e.msg));
   } catch (const YAML::Exception& e) {
     throw IoError(fmt::format("{}: cannot read YAML: {}", path, e.msg));
   }
+  if (!node || node.IsNull()) {
+    throw ConfigError(fmt::format("{}: no settings in the file (empty, or only comments)", path));
+  }
+  check_unique_keys(node, path);
+  return node;
 }
+
+namespace {
+void check_unique_keys_at(const YAML::Node& node, const std::string& path, const std::string& key_path) {
+  if (node.IsSequence()) {
+    for (std::size_t i = 0; i < node.size(); ++i) {
+      check_unique_keys_at(node[i], path, fmt::format("{}[{}]", key_path, i));
+    }
+    return;
+  }
+  if (!node.IsMap()) return;
+  std::set<std::string> seen;
+  for (const auto& kv : node) {
+    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
+    const std::string here = key_path.empty() ? key : key_path + "/" + key;
+    if (kv.first.IsScalar() && !seen.insert(key).second) {
+      throw ConfigError(fmt::format("{}: line {}: key '{}' given twice (only one value can be used)", path,
+                                    kv.first.Mark().line + 1, here));
+    }
+    check_unique_keys_at(kv.second, path, here);
+  }
+}
+}  // namespace
+
+void check_unique_keys(const YAML::Node& node, const std::string& path) { check_unique_keys_at(node, path, ""); }
 
 namespace detail {
 std::string yaml_node_text(const YAML::Node& n) {

@@ -10,8 +10,13 @@
 
 namespace rtslam {
 
-/// Loads a YAML file; throws IoError (missing, a directory, unreadable) or ConfigError (syntax) naming the file.
+/// Loads a YAML file; throws IoError (missing, a directory, unreadable) or ConfigError (syntax, a key given twice in
+/// one mapping, nothing in the file but comments) naming the file.
 YAML::Node load_yaml_file(const std::string& path);
+
+/// Throws ConfigError naming `path`, the line and the key path when a mapping in `node` has a key twice (yaml-cpp
+/// keeps both and a lookup sees only the first, so the second would be ignored silently).
+void check_unique_keys(const YAML::Node& node, const std::string& path);
 
 /// A view of one YAML mapping with key tracking. `where` names the file and key path for messages.
 class YamlMap {

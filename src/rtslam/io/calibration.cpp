@@ -267,13 +267,16 @@ YAML::Node load_yaml_lenient(const std::string& path) {
   std::string text = ss.str();
   // OpenCV FileStorage writes "%YAML:1.0" (not a valid YAML directive): comment it out, keeping line numbers.
   if (text.rfind("%YAML:", 0) == 0 || text.rfind("%YAML 1.0", 0) == 0) text.insert(0, "#");
+  YAML::Node node;
   try {
-    return YAML::Load(text);
+    node = YAML::Load(text);
   } catch (const YAML::ParserException& e) {
     throw ConfigError(fmt::format("{}: malformed YAML at line {}: {}", path, e.mark.line + 1, e.msg));
   } catch (const YAML::Exception& e) {
     throw IoError(fmt::format("{}: cannot read YAML: {}", path, e.msg));
   }
+  check_unique_keys(node, path);
+  return node;
 }
 
 namespace {

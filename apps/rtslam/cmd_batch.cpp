@@ -62,6 +62,7 @@ void run_batch_cmd(const BatchArgs& a) {
     }
     return;
   }
+  std::size_t failed = 0;
   if (!a.aggregate_only) {
     const bool tty = ::isatty(STDERR_FILENO);
     std::size_t last_finished = static_cast<std::size_t>(-1);
@@ -77,6 +78,7 @@ void run_batch_cmd(const BatchArgs& a) {
     if (tty) std::cerr << '\n';
     std::cout << fmt::format("batch: {} runs, {} resumed, {} ran, {} failed\n", outcome.total, outcome.skipped,
                              outcome.ran, outcome.failed);
+    failed = outcome.failed;
     for (const auto& d : outcome.failed_dirs) std::cout << "  failed: " << d << "/run.log\n";
   }
   const auto groups = eval::aggregate_batch(o);
@@ -85,6 +87,10 @@ void run_batch_cmd(const BatchArgs& a) {
   if (a.report) {
     eval::ReportOptions ro;
     std::cout << "wrote " << eval::write_batch_report(a.out, ro) << '\n';
+  }
+  if (failed > 0) {
+    throw DataError(fmt::format("{} of the batch's runs failed (their run.log in {}/); the aggregates above are of "
+                                "the others", failed, a.out));
   }
 }
 

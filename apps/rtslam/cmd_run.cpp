@@ -587,6 +587,7 @@ void run_dataset(const RunOptions& ro) {
                            {"image_gaps", result.frame_gaps},
                            {"frames_without_search", without_search},
                            {"corrections_refused", refused},
+                           {"never_tracked", !pipeline::never_tracked(result).empty()},
                            {"mean_nis_per_dof", nis_n > 0 ? nis_sum / (2.0 * static_cast<double>(nis_n)) : 0.0}};
       if (o.position_sensor.enabled || o.pose_sensor.enabled) {
         summary["absolute"] = {{"corrections_applied", abs_updates}, {"corrections_rejected", abs_rejected}};
@@ -743,6 +744,9 @@ void run_dataset(const RunOptions& ro) {
     throw DataError(fmt::format("the run ended with tracking {} ({} re-initialization(s) did not recover it); outputs "
                                 "in {}/ describe a broken estimate", slam::to_string(result.final_health),
                                 result.resets, ro.out));
+  }
+  if (const std::string why = pipeline::never_tracked(result); !why.empty()) {
+    throw DataError(fmt::format("{}; outputs in {}/", why, ro.out));
   }
 }
 

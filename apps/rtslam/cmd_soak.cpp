@@ -176,6 +176,11 @@ void run_soak(const SoakOptions& so) {
                            first.frame_ms.median, last.frame_ms.median,
                            last.frame_ms.median / std::max(first.frame_ms.median, 1e-9), first.frame_ms.max,
                            last.frame_ms.max);
+  if (result.final_health != slam::Health::Ok) {
+    throw DataError(fmt::format("the soak ended with tracking {} ({} re-initialization(s) did not recover it): its "
+                                "figures describe a broken run", slam::to_string(result.final_health), result.resets));
+  }
+  if (const std::string why = pipeline::never_tracked(result); !why.empty()) throw DataError(why);
 }
 
 }  // namespace

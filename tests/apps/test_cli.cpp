@@ -538,8 +538,8 @@ TEST(Cli, RunRealtimeReportsProcessedAndDroppedImages) {
   cv::Mat img(120, 160, CV_8UC1);
   cv::RNG rng(7);
   std::ofstream times(d / "times.txt");
+  rng.fill(img, cv::RNG::UNIFORM, 0, 255);  // one textured view, seen 40 times by a camera at rest: it tracks
   for (int i = 0; i < 40; ++i) {
-    rng.fill(img, cv::RNG::UNIFORM, 0, 255);
     cv::imwrite((d / "frames" / fmt::format("{}.png", i)).string(), img);
     times << fmt::format("{:.2f} {}.png\n", 0.05 * i, i);
   }
@@ -576,6 +576,40 @@ TEST(Cli, RunRealtimeReportsProcessedAndDroppedImages) {
 }
 
 }  // namespace
+
+TEST(Cli, ARunThatNeverMatchesFailsEvenWhenTooShortForTheHealthMonitor) {
+  // Review 27 Nov: with a ZNCC threshold nothing reaches, a 1.2 s run (inside the health monitor's grace and
+  // lost_after) and a whole run with health off exited 0 as "complete".
+  const fs::path data = fs::path(RTSLAM_SOURCE_DIR) / ".." / "shared" / "datasets" / "euroc-v101-static";
+  if (!fs::exists(data)) GTEST_SKIP() << "dataset " << data << " not found";
+  const fs::path d = temp_dir("never_tracked");
+  fs::create_directories(d);
+  {
+    std::ofstream c(d / "no_match.yaml");
+    c << "search:\n  zncc: {threshold: 1.0}\n";
+    std::ofstream h(d / "no_match_no_health.yaml");
+    h << "search:\n  zncc: {threshold: 1.0}\nhealth: {enabled: false}\n";
+  }
+  const std::string ds = " --dataset euroc:" + data.string();
+  const Result shortrun = run("run" + ds + " --config " + (d / "no_match.yaml").string() + " --stop-after 1.2 --out " +
+                              (d / "a").string());
+  EXPECT_EQ(shortrun.code, 1) << shortrun.out;
+  EXPECT_NE(shortrun.out.find("rtslam: error: no landmark was matched and corrected in any of the"), std::string::npos)
+      << shortrun.out;
+  EXPECT_NE(read_file(d / "a" / "summary.json").find("\"never_tracked\": true"), std::string::npos);
+  const Result nohealth = run("run" + ds + " --config " + (d / "no_match_no_health.yaml").string() + " --out " +
+                              (d / "b").string());
+  EXPECT_EQ(nohealth.code, 1) << nohealth.out;
+  EXPECT_NE(nohealth.out.find("no landmark was matched"), std::string::npos) << nohealth.out;
+  const Result soak = run("--log-level warn soak" + ds + " --config " + (d / "no_match_no_health.yaml").string() +
+                          " --repeat 1 --sample 1");
+  EXPECT_EQ(soak.code, 1) << soak.out;
+  EXPECT_NE(soak.out.find("no landmark was matched"), std::string::npos) << soak.out;
+  // The same sequence with the default threshold matches: no error.
+  const Result ok = run("run" + ds + " --stop-after 1.2 --out " + (d / "c").string());
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_NE(read_file(d / "c" / "summary.json").find("\"never_tracked\": false"), std::string::npos);
+}
 
 // rtslam soak (issue "Reliability", soak): the recording replayed several times in one run, memory and per-frame
 // time sampled per interval of stream, the first and last intervals compared; the long runs themselves are

@@ -54,6 +54,24 @@ TEST(CliEval, PrintsTableAndWritesJsonEqualToTheLibrary) {
   fs::remove_all(dir);
 }
 
+TEST(CliBatch, AFailedRunMakesTheBatchExitNonZeroAfterItsAggregates) {
+  // Review 27 Nov: `rtslam batch` printed "1 failed" and exited 0.
+  const fs::path dir = temp_dir("batch_fail");
+  const fs::path out = dir / "batch";
+  const fs::path log = dir / "batch.log";
+  const int code = run_process({RTSLAM_CLI, "batch", "--out", out.string(), "--exe", EVAL_FAKE_RUN, "--seeds", "3",
+                                "--duration", "2", "-j", "1", "--align", "origin", "--run-arg=--fail-seed",
+                                "--run-arg=1"},
+                               log.string());
+  EXPECT_EQ(code, 1) << "see " << log;
+  std::ifstream in(log);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("1 of the batch's runs failed"), std::string::npos) << text;
+  const auto j = read_json(out / "batch.json");  // the aggregates of the others are still written
+  EXPECT_EQ(j["groups"][0]["evaluated"], 2);
+  fs::remove_all(dir);
+}
+
 TEST(CliBatch, TwentySeedsOfTenSecondsOnTwoCoresWithReportInChromium) {
   const fs::path dir = temp_dir("batch");
   const fs::path out = dir / "batch";

@@ -604,4 +604,17 @@ ImageSlamResult run_image_slam(io::Dataset& ds, const ImageSlamOptions& o,
   return run_image_slam(*ds.source, ds.rig, ds.name, o, on_frame, observer, stop);
 }
 
+std::string never_tracked(const ImageSlamResult& result, int min_frames) {
+  int camera_frames = 0;
+  for (const slam::FrameStats& f : result.frames) {
+    if (!f.landmark_frame) continue;
+    if (f.updated > 0) return {};
+    ++camera_frames;
+  }
+  if (camera_frames < min_frames) return {};
+  return fmt::format("no landmark was matched and corrected in any of the {} camera frames: the estimate is the "
+                     "robot's prediction alone, not SLAM (check the images, the calibration and search/zncc)",
+                     camera_frames);
+}
+
 }  // namespace rtslam::pipeline

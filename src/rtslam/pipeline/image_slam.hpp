@@ -206,6 +206,11 @@ class ImageSlam {
   std::unique_ptr<Impl> impl_;
 };
 
+/// A run that never matched: at least `min_frames` camera frames processed and not one landmark corrected in any of
+/// them (a threshold nothing reaches, health off, or a run shorter than the health monitor's grace and lost_after).
+/// The estimate is then the prior or the proprioceptive sensors alone; the message says so (empty: the run matched).
+std::string never_tracked(const ImageSlamResult& result, int min_frames = 10);
+
 /// Runs the pipeline over a measurement stream and its rig calibration (`name` for messages). `on_frame(done,
 /// total)` after each image taken from the stream (total 0 if unknown); `observer` after each image the filter
 /// processed. `stop`, when given, is read before each measurement: once true, the run ends there and returns what

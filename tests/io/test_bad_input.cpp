@@ -172,6 +172,22 @@ TEST(BadInput, DuplicateImageTimestamp) {
   EXPECT_EQ(r.stats.images, static_cast<size_t>(kImages));
 }
 
+TEST(BadInput, ImageTimestampJumpingYearsAhead) {
+  // Review 27 Nov: a last image stamped 1e8 s late was predicted to and ended the run 300 km away, exit 0.
+  TempDir dir;
+  const std::string root = make_dataset(dir);
+  const std::string csv = root + "/mav0/cam0/data.csv";
+  auto lines = lines_of(csv);
+  const std::string last = lines.back();
+  const std::string file = last.substr(last.find(','));
+  lines.back() = fmt::format("{}{}", kT0 + 100'000'000'000'000'000LL, file);
+  write_lines(csv, lines);
+  expect_error<DataError>(root, {"cam0/data.csv:" + std::to_string(lines.size()) + ":", "corrupt timestamp"});
+  const Result r = run(root, BadInputPolicy::Skip);
+  EXPECT_EQ(r.stats.timestamp_jumps, 1u);
+  EXPECT_EQ(r.stats.images, static_cast<size_t>(kImages - 1));
+}
+
 TEST(BadInput, NanInImu) {
   TempDir dir;
   const std::string root = make_dataset(dir);

@@ -235,6 +235,37 @@ TEST(Dataset, ReadsVideoFile) {
   EXPECT_NEAR(d.images[3].image.at<uint8_t>(10, 10), 120, 6);  // MJPG is lossy
 }
 
+TEST(Dataset, ATruncatedVideoIsAnErrorNotAnEarlyEnd) {
+  // Review 27 Nov: a video cut to half its size ended after its first frames, silently, exit 0.
+  TempDir dir;
+  const std::string video = dir / "clip.avi";
+  {
+    cv::VideoWriter w(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 15.0, cv::Size(64, 48), true);
+    if (!w.isOpened()) GTEST_SKIP() << "OpenCV cannot write MJPG video here";
+    cv::Mat img(48, 64, CV_8UC3);
+    cv::RNG rng(3);
+    for (int i = 0; i < 30; ++i) {
+      rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+      w.write(img);
+    }
+  }
+  write_text(dir / "calibration.yaml",
+             "cameras:\n  - name: cam0\n    width: 64\n    height: 48\n    intrinsics: [50, 50, 32, 24]\n");
+  const std::uintmax_t size = std::filesystem::file_size(video);
+  std::filesystem::resize_file(video, size / 2);
+  {
+    Dataset ds = open_dataset(video);
+    EXPECT_THROW_WITH(drain(*ds.source, true), IoError, "clip.avi: the video ends at frame");
+  }
+  DatasetOptions skip;
+  skip.bad_input = BadInputPolicy::Skip;
+  Dataset ds = open_dataset(video, skip);
+  const Drained d = drain(*ds.source, true);
+  EXPECT_GT(d.images.size(), 5u);
+  EXPECT_LT(d.images.size(), 25u);
+  EXPECT_EQ(ds.source->stats().undecodable_images, 1u);
+}
+
 TEST(Dataset, UnknownKindsAndPathsAreErrors) {
   TempDir dir;
   EXPECT_THROW_WITH(open_dataset(dir / "nope"), IoError, "nope: dataset not found");

@@ -207,8 +207,13 @@ TEST(FuzzRegressions, KittiTimesSpanningMoreThanInt64) {
   cv::imwrite(seq + "/image_0/000001.png", cv::Mat(6, 8, CV_8UC1, cv::Scalar(2)));
   write_text(seq + "/calib.txt", "P0: 10 0 4 0 0 10 3 0 0 0 1 0\n");
   write_text(seq + "/times.txt", "-9000000000.5\n9000000000.5\n");
-  const Dataset ds = open_dataset("kitti:" + seq);
+  // Such a jump is a corrupt timestamp (io::kMaxImageJumpS): an error, or skipped with the span's rate unknown.
+  EXPECT_THROW_WITH(open_dataset("kitti:" + seq), DataError, "a corrupt timestamp");
+  DatasetOptions skip;
+  skip.bad_input = BadInputPolicy::Skip;
+  const Dataset ds = open_dataset("kitti:" + seq, skip);
   EXPECT_EQ(ds.rig.cameras[0].rate_hz, 0.0);
+  EXPECT_EQ(ds.source->stats().timestamp_jumps, 1u);
   write_text(seq + "/times.txt", "0\n0.1\n");
   EXPECT_NEAR(open_dataset("kitti:" + seq).rig.cameras[0].rate_hz, 10.0, 1e-9);
   // Review: a calibration file without a camera was std::out_of_range.

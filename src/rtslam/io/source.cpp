@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <system_error>
 #include <fstream>
@@ -10,6 +11,7 @@
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -63,7 +65,7 @@ BadInputPolicy bad_input_policy_from_string(const std::string& s, const std::str
 
 std::size_t SourceStats::problems() const {
   return backwards_timestamps + duplicate_timestamps + imu_gaps + non_finite + malformed_lines + missing_images +
-         undecodable_images + wrong_size_images + imu_saturated + unsupported_images;
+         undecodable_images + wrong_size_images + imu_saturated + unsupported_images + timestamp_jumps;
 }
 
 namespace {
@@ -88,6 +90,7 @@ constexpr Counter kCounters[] = {
      "imu_saturated"},
     {&SourceStats::unsupported_images, "image of an unsupported pixel type", "images of an unsupported pixel type",
      "unsupported_images"},
+    {&SourceStats::timestamp_jumps, "image timestamp jump", "image timestamp jumps", "timestamp_jumps"},
 };
 
 }  // namespace
@@ -310,6 +313,13 @@ IndexedSource::IndexedSource(std::vector<ImuSample> imu, std::vector<int> imu_li
                                    format_seconds(e.t), format_seconds(prev)));
       continue;
     }
+    if (seen && seconds_between(e.t, prev) > kMaxImageJumpS) {
+      reporter_.report(&SourceStats::timestamp_jumps,
+                       fmt::format("{}: image timestamp {} s is {:.6g} s after the previous one of camera {} ({} s): a "
+                                   "corrupt timestamp (this one or the previous)", e.listed_at, format_seconds(e.t),
+                                   seconds_between(e.t, prev), e.camera, format_seconds(prev)));
+      continue;
+    }
     // error_code forms: a listed name the file system refuses (too long, ...) is a missing image, not an exception.
     std::error_code fs_error;
     if (options.check_files && !fs::is_regular_file(e.path, fs_error)) {
@@ -443,7 +453,17 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
     : path_(path), rate_hz_(rate_hz), t0_(t0), expected_size_(expected_size), reporter_(policy, stats_) {
   std::error_code fs_error;
   if (!fs::is_regular_file(path, fs_error)) throw IoError(fmt::format("{}: file not found", path));
-  capture_ = std::make_unique<cv::VideoCapture>(path);
+  {
+    // OpenCV logs every backend it tries on a file it cannot open (a dozen lines of GStreamer, FFmpeg and image
+    // sequence errors): quiet while opening, our one line says what failed. FFmpeg first, the backend for files;
+    // its own messages ("moov atom not found", "overread 8") are off unless the user set OpenCV's variable (read
+    // once, at the backend's first use: no other thread runs yet when a dataset is opened).
+    ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);  // AV_LOG_QUIET
+    const cv::utils::logging::LogLevel level = cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+    capture_ = std::make_unique<cv::VideoCapture>(path, cv::CAP_FFMPEG);
+    if (!capture_->isOpened()) capture_ = std::make_unique<cv::VideoCapture>(path, cv::CAP_ANY);
+    cv::utils::logging::setLogLevel(level);
+  }
   if (!capture_->isOpened()) throw IoError(fmt::format("{}: cannot open the video (unknown format or codec)", path));
   if (rate_hz_ <= 0) rate_hz_ = capture_->get(cv::CAP_PROP_FPS);
   if (!(rate_hz_ > 0) || !std::isfinite(rate_hz_)) {
@@ -458,7 +478,18 @@ VideoSource::~VideoSource() = default;
 std::optional<Measurement> VideoSource::next() {
   while (true) {
     cv::Mat raw;
-    if (!capture_->read(raw) || raw.empty()) return std::nullopt;
+    if (!capture_->read(raw) || raw.empty()) {
+      // The container says how many frames it holds: ending well before is a truncated or corrupt file, not its end
+      // (one frame of slack: some containers round their count).
+      if (frame_count_ && index_ + 1 < *frame_count_ && !end_reported_) {
+        end_reported_ = true;
+        reporter_.report(&SourceStats::undecodable_images,
+                         fmt::format("{}: the video ends at frame {} of the {} its container lists (truncated or "
+                                     "corrupt)", path_, index_, *frame_count_),
+                         true);
+      }
+      return std::nullopt;
+    }
     const std::size_t i = index_++;
     ImageFrame frame;
     const auto t = from_seconds_checked(static_cast<double>(i) / rate_hz_);

@@ -127,6 +127,7 @@ struct SourceStats {
   std::size_t wrong_size_images = 0;
   std::size_t imu_saturated = 0;  // IMU samples beyond the sensor's range (ImuRange): saturated or corrupt
   std::size_t unsupported_images = 0;  // images of a pixel type that cannot be converted to 8-bit grey faithfully
+  std::size_t timestamp_jumps = 0;  // an image more than kMaxImageJumpS after the previous one of its camera
   std::vector<std::string> messages;  // the first kMaxMessages problem messages
 
   static constexpr std::size_t kMaxMessages = 100;
@@ -196,6 +197,10 @@ struct ImageEntry {
 };
 
 /// Options of the per-stream checks.
+/// Two images of one camera further apart than this in one recording are a corrupt timestamp (a digit too many, a
+/// sign), not a pause: no sensor stream of a SLAM run stops for an hour and resumes; split such a recording.
+constexpr double kMaxImageJumpS = 3600.0;
+
 struct StreamCheckOptions {
   BadInputPolicy policy = BadInputPolicy::Error;
   double imu_rate_hz = 0.0;    // nominal IMU rate; 0 = take the median interval
@@ -265,6 +270,7 @@ class VideoSource : public Source {
   std::size_t index_ = 0;
   int image_bits_ = 8;
   std::optional<std::size_t> frame_count_;
+  bool end_reported_ = false;
 };
 
 /// Converts a decoded image to 8-bit grey (CV_8UC1). Channels: 1 (grey), 2 (grey + alpha: the grey), 3 (BGR) and 4

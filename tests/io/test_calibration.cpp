@@ -11,6 +11,7 @@ namespace rtslam::io {
 namespace {
 
 using test::TempDir;
+using test::read_text;
 using test::write_text;
 
 std::string euroc_cam0() { return test::euroc_dir() + "/mav0/cam0/sensor.yaml"; }
@@ -259,6 +260,23 @@ TEST(Calibration, RigYamlRoundTripIsExact) {
   EXPECT_EQ(back.imu->accel_saturation, imu.accel_saturation);
   EXPECT_FALSE(back.imu->gyro_saturation.has_value());
   EXPECT_EQ(back.t_d, rig.t_d);
+  // Review 27 Nov: t_d_ns had no bound (t_d in seconds had one), and 9e18 ns overflowed each image's time.
+  std::string text = read_text(dir / "rig.yaml");
+  text.replace(text.find("t_d_ns: -1234567"), 16, "t_d_ns: 9300000000000000000");
+  write_text(dir / "rig.yaml", text);
+  EXPECT_THROW_WITH(load_calibration(dir / "rig.yaml"), ConfigError, "t_d_ns");
+}
+
+TEST(Calibration, EurocDistortionCoefficientsWithoutAModelAreAnError) {
+  // Review 27 Nov: they were dropped silently (a pinhole camera assumed).
+  TempDir dir;
+  write_text(dir / "sensor.yaml",
+             "sensor_type: camera\nrate_hz: 20\nresolution: [752, 480]\ncamera_model: pinhole\n"
+             "intrinsics: [458.654, 457.296, 367.215, 248.375]\n"
+             "distortion_coefficients: [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]\n"
+             "T_BS:\n  cols: 4\n  rows: 4\n  data: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n");
+  EXPECT_THROW_WITH(load_euroc_camera(dir / "sensor.yaml"), ConfigError,
+                    "distortion_coefficients without distortion_model");
 }
 
 }  // namespace

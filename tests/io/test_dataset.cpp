@@ -209,6 +209,11 @@ TEST(Dataset, ImageFolderWithTimestampsUsesNaturalOrder) {
   // A timestamps file with fewer lines than images is an error, not a silent drop.
   write_text(dir / "times.txt", "0.5\n0.6\n");
   EXPECT_THROW_WITH(open_dataset(dir.str()), DataError, "2 timestamps for 3 images");
+  // Review 27 Nov: one `time filename` line among plain times turned the count check off; 20 of 30 images were
+  // dropped silently.
+  write_text(dir / "times.txt", "0.5\n0.6 0001.png\n0.75\n");
+  EXPECT_THROW_WITH(open_dataset(dir.str()), DataError,
+                    "times.txt:2: a 'time filename' line in a file whose first entry is a 'time' line: use one form");
   // No timestamps and no rate anywhere.
   fs::remove(dir / "times.txt");
   write_text(dir / "camera.yaml",

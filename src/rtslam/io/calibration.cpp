@@ -303,6 +303,10 @@ CameraCalibration euroc_camera(const std::string& path, std::vector<std::string>
   cam.fy = k[1];
   cam.cx = k[2];
   cam.cy = k[3];
+  if (!y["distortion_model"] && y["distortion_coefficients"]) {
+    throw ConfigError(fmt::format("{}: distortion_coefficients without distortion_model: say which model they are "
+                                  "for (radial-tangential, equidistant, ...; 'none' to ignore them)", path));
+  }
   cam.distortion = distortion_model_from_string(
       y["distortion_model"] ? need<std::string>(y, "distortion_model", path) : "none", path + ": distortion_model");
   if (cam.distortion != DistortionModel::None) cam.distortion_coeffs = numbers(y, "distortion_coefficients", path, -1);
@@ -573,6 +577,8 @@ Rig rig_yaml(const std::string& path) {
   if (root.has("t_d_ns")) {
     std::int64_t t_d = 0;
     root.get("t_d_ns", t_d);
+    require_bound(t_d >= -9'200'000'000'000'000'000LL && t_d <= 9'200'000'000'000'000'000LL, path, "t_d_ns",
+                  static_cast<double>(t_d), "within +-9.2e18 ns (as t_d: +-9.2e9 s)");
     rig.t_d = t_d;
   }
   root.get("t_d", t_d_s);

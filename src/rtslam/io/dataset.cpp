@@ -340,6 +340,7 @@ Dataset open_images(const fs::path& root, const DatasetOptions& o) {
     std::string line;
     size_t k = 0;
     bool by_index = true;
+    int form = 0;  // entries per line of the first entry: 1 (time) or 2 (time filename)
     while (in.next(line)) {
       const std::string_view s = trim(line);
       if (s.empty() || s.front() == '#') continue;
@@ -351,6 +352,13 @@ Dataset open_images(const fs::path& root, const DatasetOptions& o) {
                         fmt::format("{}: expected 'time[s]' or 'time[s] filename', got '{}'", e.listed_at, line), true);
         continue;
       }
+      // One form per file: a `time filename` line among plain times (or the reverse) would make the index pairing
+      // and the count check apply to neither, and images would be dropped silently.
+      if (form != 0 && static_cast<std::size_t>(form) != f.size()) {
+        throw DataError(fmt::format("{}: a '{}' line in a file whose first entry is a '{}' line: use one form", e.listed_at,
+                                    f.size() == 2 ? "time filename" : "time", form == 2 ? "time filename" : "time"));
+      }
+      form = static_cast<int>(f.size());
       if (f.size() == 2) {
         by_index = false;
         e.path = (dir / std::string(f[1])).string();

@@ -440,7 +440,13 @@ struct ImageSlam::Impl final : slam::Observer {
     if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
     if (cam == camera) ++consumed;
     auto d = system.spare<MatImage>();
-    d->set(frame->t + t_d, cam->sensor->id(), std::move(frame->image));
+    const std::optional<TimeNs> t_imu = add_checked(frame->t, t_d);
+    if (!t_imu) {
+      throw DataError(fmt::format("{}: its time {} s plus the camera-IMU time offset t_d {} s lies beyond the int64 "
+                                  "nanosecond range (check t_d / t_d_ns / imu/time_offset)", frame->path,
+                                  to_seconds(frame->t), to_seconds(t_d)));
+    }
+    d->set(*t_imu, cam->sensor->id(), std::move(frame->image));
     if (built.cameras.size() == 1) {
       feed_image(std::move(d), frame->path);
     } else {

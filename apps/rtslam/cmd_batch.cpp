@@ -86,7 +86,8 @@ void run_batch_cmd(const BatchArgs& a) {
   std::cout << fmt::format("wrote {0}/batch.md, {0}/batch.csv, {0}/batch.json\n", a.out);
   if (a.report) {
     eval::ReportOptions ro;
-    std::cout << "wrote " << eval::write_batch_report(a.out, ro) << '\n';
+    const std::string written = eval::write_batch_report(a.out, ro);
+    std::cout << "wrote " << written << '\n';
   }
   if (failed > 0) {
     throw DataError(fmt::format("{} of the batch's runs failed (their run.log in {}/); the aggregates above are of "

@@ -24,7 +24,8 @@ void register_report(CLI::App& app) {
     eval::ReportOptions o;
     o.output = a->out;
     o.eval.align = eval::parse_alignment(a->align);
-    std::cout << "wrote " << eval::write_report(a->dir, o) << '\n';
+    const std::string written = eval::write_report(a->dir, o);  // before "wrote": an error must not follow it
+    std::cout << "wrote " << written << '\n';
   });
 }
 

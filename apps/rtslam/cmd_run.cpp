@@ -710,6 +710,10 @@ void run_dataset(const RunOptions& ro) {
     throw;
   }
   signals.restore();
+  if (ro.overlay_frame && !std::filesystem::exists(o.overlay_path)) {
+    logger("run")->warn("--overlay-frame {}: no overlay written, the filter processed {} frame(s)", *ro.overlay_frame,
+                        result.frames.size());
+  }
   std::cout << fmt::format(
       "rtslam run on {} ({}), seed {}: {} frames\n"
       "  landmarks: {} in map at the end ({} Euclidean), {} created; matched per frame: min {} ({} after 1 s)\n"

@@ -265,6 +265,15 @@ TEST(BadInput, MalformedSensorYaml) {
   expect_error<ConfigError>(root, {yaml, "malformed YAML at line"});
 }
 
+TEST(BadInput, CameraListWithNoImage) {
+  // Review 27 Nov: the error came from the pipeline ("dataset 'x' has no image ..."), without the file.
+  TempDir dir;
+  const std::string root = make_dataset(dir);
+  const std::string csv = root + "/mav0/cam0/data.csv";
+  write_lines(csv, {"#timestamp [ns],filename"});
+  expect_error<DataError>(root, {csv, "lists no image"});
+}
+
 TEST(BadInput, SensorYamlKeyTwice) {
   TempDir dir;
   const std::string root = make_dataset(dir);

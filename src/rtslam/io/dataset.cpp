@@ -98,6 +98,7 @@ std::vector<ImageEntry> read_euroc_images(const fs::path& cam_dir, int camera, B
     e.path = (cam_dir / "data" / std::string(f[1])).string();
     out.push_back(std::move(e));
   }
+  if (out.empty()) throw DataError(fmt::format("{}: lists no image", csv));
   return out;
 }
 

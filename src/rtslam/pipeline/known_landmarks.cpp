@@ -56,7 +56,13 @@ KnownLandmarkSet load_known_landmarks(const std::string& folder, const std::stri
   if (convention != "scenelib" && convention != "robot") {
     throw ConfigError(fmt::format("known landmarks: convention '{}' must be robot or scenelib", convention));
   }
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    throw IoError(fmt::format("{}: known landmarks: not a folder (it holds initial_state.json and the patches)",
+                              folder));
+  }
   const std::string path = folder + "/initial_state.json";
+  if (!std::filesystem::is_regular_file(path, ec)) throw IoError(fmt::format("{}: file not found", path));
   std::ifstream in(path);
   if (!in) throw IoError(fmt::format("{}: cannot open", path));
   nlohmann::json j;

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <limits>
 
+#include <sys/stat.h>
+
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/time.hpp"
 #include "rtslam/core/yaml.hpp"
@@ -67,6 +69,15 @@ TEST(LoadYamlFile, AKeyGivenTwiceIsAnErrorNamingLineAndKeyPath) {
     out << "a: {x: 1}\nb: {x: 2}\n";  // the same key in two mappings is fine
   }
   EXPECT_TRUE(load_yaml_file(path).IsMap());
+  std::filesystem::remove(path);
+}
+
+TEST(LoadYamlFile, APipeIsAnErrorNotAHang) {
+  // Review 27 Nov: --config pointing at a FIFO with no writer blocked the run until killed.
+  const auto path = (std::filesystem::temp_directory_path() / "rtslam_test_fifo.yaml").string();
+  std::filesystem::remove(path);
+  ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
+  EXPECT_EQ(message_of([&] { load_yaml_file(path); }), path + ": not a regular file (a pipe or device), not a YAML file");
   std::filesystem::remove(path);
 }
 

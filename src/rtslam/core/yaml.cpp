@@ -9,6 +9,9 @@ namespace rtslam {
 YAML::Node load_yaml_file(const std::string& path) {
   if (!std::filesystem::exists(path)) throw IoError(fmt::format("{}: file not found", path));
   if (std::filesystem::is_directory(path)) throw IoError(fmt::format("{}: is a directory, not a YAML file", path));
+  if (!std::filesystem::is_regular_file(path)) {
+    throw IoError(fmt::format("{}: not a regular file (a pipe or device), not a YAML file", path));
+  }
   YAML::Node node;
   try {
     node = YAML::LoadFile(path);

@@ -146,8 +146,14 @@ std::string format_seconds(TimeNs t) {
   return fmt::format("{}{}.{:09d}", negative ? "-" : "", mag / 1'000'000'000ULL, mag % 1'000'000'000ULL);
 }
 
-LineReader::LineReader(const std::string& path) : path_(path), in_(path) {
-  if (!std::filesystem::is_regular_file(path)) throw IoError(fmt::format("{}: file not found", path));
+LineReader::LineReader(const std::string& path) : path_(path) {
+  // Checked before opening: opening a FIFO (or a device) for reading blocks until someone writes to it.
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: file not found", path));
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw IoError(fmt::format("{}: not a regular file (a directory, pipe or device)", path));
+  }
+  in_.open(path);
   if (!in_) throw IoError(fmt::format("{}: cannot open for reading", path));
 }
 

@@ -221,6 +221,15 @@ TEST(FramesCsv, RoundTripsEveryField) {
   EXPECT_FALSE(fs::exists(dir / "frames.csv.tmp"));
   const auto back = read_frames_csv(dir / "frames.csv");
   ASSERT_EQ(back.size(), rows.size());
+  {  // Review 27 Nov: an empty file read as a run of no frame (rtslam view showed nothing, exit 0).
+    std::ofstream empty(dir / "empty.csv");
+  }
+  EXPECT_THROW(read_frames_csv(dir / "empty.csv"), IoError);
+  {
+    FramesCsvWriter none(dir / "none.csv");
+    none.close();
+  }
+  EXPECT_TRUE(read_frames_csv(dir / "none.csv").empty());  // the header alone: a run that processed no frame
   for (size_t i = 0; i < rows.size(); ++i) {
     EXPECT_EQ(back[i].t, rows[i].t);
     EXPECT_EQ(back[i].landmarks, rows[i].landmarks);

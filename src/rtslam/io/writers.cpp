@@ -209,6 +209,8 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     s.absolute_rejected = static_cast<int>(abs_rejected);
     rows.push_back(s);
   }
+  // The writer starts every file with its header: a file without a line is truncated, not a run of no frame.
+  if (in.line_number() == 0) throw IoError(fmt::format("{}: empty (not even the header line)", path));
   return rows;
 }
 

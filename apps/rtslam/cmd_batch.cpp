@@ -62,7 +62,6 @@ void run_batch_cmd(const BatchArgs& a) {
     }
     return;
   }
-  std::size_t failed = 0;
   if (!a.aggregate_only) {
     const bool tty = ::isatty(STDERR_FILENO);
     std::size_t last_finished = static_cast<std::size_t>(-1);
@@ -78,7 +77,6 @@ void run_batch_cmd(const BatchArgs& a) {
     if (tty) std::cerr << '\n';
     std::cout << fmt::format("batch: {} runs, {} resumed, {} ran, {} failed\n", outcome.total, outcome.skipped,
                              outcome.ran, outcome.failed);
-    failed = outcome.failed;
     for (const auto& d : outcome.failed_dirs) std::cout << "  failed: " << d << "/run.log\n";
   }
   const auto groups = eval::aggregate_batch(o);
@@ -89,9 +87,12 @@ void run_batch_cmd(const BatchArgs& a) {
     const std::string written = eval::write_batch_report(a.out, ro);
     std::cout << "wrote " << written << '\n';
   }
+  // From the aggregation, not this invocation's runs: a resumed or --aggregate-only batch with failed runs says so.
+  std::size_t failed = 0;
+  for (const auto& g : groups) failed += g.failed;
   if (failed > 0) {
-    throw DataError(fmt::format("{} of the batch's runs failed (their run.log in {}/); the aggregates above are of "
-                                "the others", failed, a.out));
+    throw DataError(fmt::format("{} of the batch's runs failed or ended broken (their run.log in {}/); the aggregates "
+                                "above are of the others", failed, a.out));
   }
 }
 

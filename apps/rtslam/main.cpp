@@ -1,4 +1,5 @@
 // rtslam: the command-line entry point. Thin: parses, wires, reports; the work lives in the libraries.
+#include <cstdlib>
 #include <exception>
 #include <iostream>
 
@@ -7,6 +8,9 @@
 #include "rtslam/core/log.hpp"
 
 int main(int argc, char** argv) {
+  // FFmpeg's own messages on a corrupt video ("moov atom not found", "overread 8") would come before our one-line
+  // error: off unless the user set OpenCV's variable. Set here, before any thread reads the environment.
+  ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);  // AV_LOG_QUIET
   CLI::App app{"rtslam: real-time EKF-SLAM for cameras and IMUs (RT-SLAM)"};
   app.require_subcommand(1);
   std::string log_level = "info";

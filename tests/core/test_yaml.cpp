@@ -81,6 +81,32 @@ TEST(LoadYamlFile, APipeIsAnErrorNotAHang) {
   std::filesystem::remove(path);
 }
 
+TEST(LoadYamlFile, AliasesAreCheckedOnceNotPerReference) {
+  // Review 27 Nov: the duplicate-key walk followed aliases: nested ones made it exponential, a self-reference endless.
+  const auto path = (std::filesystem::temp_directory_path() / "rtslam_test_aliases.yaml").string();
+  {
+    std::ofstream out(path);
+    out << "l0: &a0 [x, y]\n";
+    for (int i = 1; i <= 40; ++i) out << "l" << i << ": &a" << i << " [*a" << i - 1 << ", *a" << i - 1 << "]\n";
+  }
+  EXPECT_TRUE(load_yaml_file(path).IsMap());  // 2^40 paths, 41 lists
+  {
+    std::ofstream out(path);
+    out << "a: &m {k: 1, k2: *m}\nb: [*m, *m]\n";
+  }
+  try {
+    load_yaml_file(path);  // yaml-cpp may refuse the cycle; it must not hang or overflow
+  } catch (const Error&) {
+  }
+  {
+    std::ofstream out(path);
+    out << "a: &m {k: 1, k: 2}\nb: *m\n";
+  }
+  EXPECT_EQ(message_of([&] { load_yaml_file(path); }),
+            path + ": line 1: key 'a/k' given twice (only one value can be used)");
+  std::filesystem::remove(path);
+}
+
 TEST(LoadYamlFile, AFileWithNoSettingsIsAnError) {
   const auto path = (std::filesystem::temp_directory_path() / "rtslam_test_empty.yaml").string();
   for (const char* text : {"", "# only a comment\n\n"}) {

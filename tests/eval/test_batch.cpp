@@ -132,6 +132,29 @@ TEST(Batch, CommandListAndSlurmScriptRunOneIndependentProcessPerLine) {
   fs::remove_all(dir);
 }
 
+TEST(Batch, ARunThatEndedBrokenIsFailedNotAggregatedAndRetried) {
+  // Review 27 Nov: `rtslam run` exits 1 after writing every output when tracking ended lost or never started; its
+  // summary says "complete", and the batch aggregated it and counted it resumed.
+  const fs::path dir = temp_dir("broken");
+  BatchOptions o = fake_options(dir, 3);
+  ASSERT_EQ(run_batch(o, {}).failed, 0u);
+  const fs::path lost = dir / "runs/sim/default/seed_0001/summary.json";
+  const fs::path never = dir / "runs/sim/default/seed_0002/summary.json";
+  std::ofstream(lost) << "{\"status\": \"complete\", \"health\": {\"final\": \"lost\", \"never_tracked\": false}}\n";
+  std::ofstream(never) << "{\"status\": \"complete\", \"health\": {\"final\": \"ok\", \"never_tracked\": true}}\n";
+  fs::remove(dir / "runs/sim/default/seed_0001/eval.json");
+  fs::remove(dir / "runs/sim/default/seed_0002/eval.json");
+  const auto groups = aggregate_batch(o);
+  ASSERT_EQ(groups.size(), 1u);
+  EXPECT_EQ(groups[0].evaluated, 1u);
+  EXPECT_EQ(groups[0].failed, 2u);
+  const BatchOutcome again = run_batch(o, {});  // both retried (the fake run then finishes them)
+  EXPECT_EQ(again.skipped, 1u);
+  EXPECT_EQ(again.ran, 2u);
+  EXPECT_EQ(aggregate_batch(o)[0].evaluated, 3u);
+  fs::remove_all(dir);
+}
+
 TEST(Batch, ProgressLineShowsCountsAndBar) {
   BatchProgress p;
   p.total = 20;

@@ -7,6 +7,8 @@
 #include <limits>
 #include <filesystem>
 
+#include <sys/stat.h>
+
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
@@ -87,6 +89,15 @@ TEST(Text, DoubleFormatRoundTripsEveryBit) {
     ASSERT_TRUE(parse_double(format_double(x), y));
     EXPECT_TRUE(bits_equal(x, y)) << format_double(x);
   }
+}
+
+TEST(Text, LineReaderRefusesAPipeInsteadOfBlocking) {
+  // Review 27 Nov: the stream was opened before the path was checked, and opening a FIFO with no writer blocks.
+  TempDir dir;
+  const std::string fifo = dir / "pipe.csv";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_THROW_WITH(LineReader{fifo}, IoError, "pipe.csv: not a regular file (a directory, pipe or device)");
+  EXPECT_THROW_WITH(LineReader{dir / "absent.csv"}, IoError, "absent.csv: file not found");
 }
 
 TEST(Text, DoubleOutOfRangeIsRefusedNotZero) {

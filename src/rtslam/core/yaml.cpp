@@ -28,14 +28,22 @@ YAML::Node load_yaml_file(const std::string& path) {
 }
 
 namespace {
-void check_unique_keys_at(const YAML::Node& node, const std::string& path, const std::string& key_path) {
+// Each mapping and list once: an alias is the anchored node itself in yaml-cpp, so following every path would visit
+// a node as often as it is referenced (exponentially often through nested aliases) or forever (an alias inside its
+// own anchor). Loaded nodes are told apart by where they start in the file.
+using Visited = std::set<std::pair<int, int>>;
+
+void check_unique_keys_at(const YAML::Node& node, const std::string& path, const std::string& key_path,
+                          Visited& visited) {
+  if (!node.IsSequence() && !node.IsMap()) return;
+  const YAML::Mark mark = node.Mark();
+  if (!mark.is_null() && !visited.insert({mark.pos, mark.line}).second) return;
   if (node.IsSequence()) {
     for (std::size_t i = 0; i < node.size(); ++i) {
-      check_unique_keys_at(node[i], path, fmt::format("{}[{}]", key_path, i));
+      check_unique_keys_at(node[i], path, fmt::format("{}[{}]", key_path, i), visited);
     }
     return;
   }
-  if (!node.IsMap()) return;
   std::set<std::string> seen;
   for (const auto& kv : node) {
     const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
@@ -44,12 +52,15 @@ void check_unique_keys_at(const YAML::Node& node, const std::string& path, const
       throw ConfigError(fmt::format("{}: line {}: key '{}' given twice (only one value can be used)", path,
                                     kv.first.Mark().line + 1, here));
     }
-    check_unique_keys_at(kv.second, path, here);
+    check_unique_keys_at(kv.second, path, here, visited);
   }
 }
 }  // namespace
 
-void check_unique_keys(const YAML::Node& node, const std::string& path) { check_unique_keys_at(node, path, ""); }
+void check_unique_keys(const YAML::Node& node, const std::string& path) {
+  Visited visited;
+  check_unique_keys_at(node, path, "", visited);
+}
 
 namespace detail {
 std::string yaml_node_text(const YAML::Node& n) {

@@ -99,15 +99,22 @@ std::vector<RunSpec> plan_batch(const BatchOptions& o) {
   return runs;
 }
 
-// Finished: summary.json exists and does not say "interrupted" or "failed" (docs/outputs.md "Crash safety"), which
-// are retried like runs without one.
+// Finished: summary.json exists and does not say "interrupted" or "failed" (docs/outputs.md "Crash safety"), nor
+// that the run ended broken (health final lost or diverged, or never tracked: `rtslam run` exited 1 after writing
+// every output); the others are retried like runs without one, and counted failed, not aggregated.
 bool run_finished(const RunSpec& run) {
   const fs::path summary = fs::path(run.dir) / "summary.json";
   if (!fs::exists(summary)) return false;
   std::ifstream in(summary);
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return text.find("\"status\": \"interrupted\"") == std::string::npos &&
-         text.find("\"status\": \"failed\"") == std::string::npos;
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) return false;
+  const std::string status = j.value("status", "");
+  if (status == "interrupted" || status == "failed") return false;
+  if (const auto h = j.find("health"); h != j.end() && h->is_object()) {
+    if (h->value("final", "ok") != "ok" || h->value("never_tracked", false)) return false;
+  }
+  return true;
 }
 
 std::string format_progress(const BatchProgress& p, int width) {
@@ -172,8 +179,9 @@ std::string write_command_list(const BatchOptions& o, const std::string& path) {
     }
     const std::string dir = shell_quote(r.dir);
     text += fmt::format(
-        "{{ [ -f {0}/summary.json ] && ! grep -qE '\"status\": \"(interrupted|failed)\"' "
-        "{0}/summary.json; }} || {{ mkdir -p {0} && {1} > {0}/run.log 2>&1; }}\n",
+        "{{ [ -f {0}/summary.json ] && ! grep -qE '\"status\": \"(interrupted|failed)\"|\"final\": "
+        "\"(lost|diverged)\"|\"never_tracked\": true' {0}/summary.json; }} || "
+        "{{ mkdir -p {0} && {1} > {0}/run.log 2>&1; }}\n",
         dir, cmd);
   }
   write_text(path, text);

@@ -281,6 +281,13 @@ void RosbagSource::index(const BagReadSpec& spec) {
                                    format_seconds(last_t[c]), zero_stamp_hint(e.t, spec.receive_time)));
       continue;
     }
+    if (seen[c] && static_cast<double>(e.t - last_t[c]) * 1e-9 > kMaxImageJumpS) {  // both stamps >= 0: no overflow
+      reporter_.report(&SourceStats::timestamp_jumps,
+                       fmt::format("{}: image timestamp is {:.6g} s after the previous one of its topic ({} s): a "
+                                   "corrupt timestamp (this one or the previous)", at,
+                                   static_cast<double>(e.t - last_t[c]) * 1e-9, format_seconds(last_t[c])));
+      continue;
+    }
     const Problem& problem = image_problems[i];
     if (problem.counter != nullptr) {
       // As for image files: an image that cannot be decoded is a file problem, a wrong size a data problem.

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <system_error>
 #include <fstream>
@@ -455,10 +454,8 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
   if (!fs::is_regular_file(path, fs_error)) throw IoError(fmt::format("{}: file not found", path));
   {
     // OpenCV logs every backend it tries on a file it cannot open (a dozen lines of GStreamer, FFmpeg and image
-    // sequence errors): quiet while opening, our one line says what failed. FFmpeg first, the backend for files;
-    // its own messages ("moov atom not found", "overread 8") are off unless the user set OpenCV's variable (read
-    // once, at the backend's first use: no other thread runs yet when a dataset is opened).
-    ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);  // AV_LOG_QUIET
+    // sequence errors): quiet while opening, our one line says what failed. FFmpeg first, the backend for files
+    // (its own messages, "moov atom not found", follow OPENCV_FFMPEG_LOGLEVEL, which the rtslam CLI sets at start).
     const cv::utils::logging::LogLevel level = cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
     capture_ = std::make_unique<cv::VideoCapture>(path, cv::CAP_FFMPEG);
     if (!capture_->isOpened()) capture_ = std::make_unique<cv::VideoCapture>(path, cv::CAP_ANY);
@@ -479,9 +476,11 @@ std::optional<Measurement> VideoSource::next() {
   while (true) {
     cv::Mat raw;
     if (!capture_->read(raw) || raw.empty()) {
-      // The container says how many frames it holds: ending well before is a truncated or corrupt file, not its end
-      // (one frame of slack: some containers round their count).
-      if (frame_count_ && index_ + 1 < *frame_count_ && !end_reported_) {
+      // The container says how many frames it holds: ending well before is a truncated or corrupt file, not its end.
+      // Slack for counts that are estimates (MKV/WebM: duration x fps, audio included; variable frame rates): 5
+      // frames or 2 %.
+      const std::size_t slack = frame_count_ ? std::max<std::size_t>(5, *frame_count_ / 50) : 0;
+      if (frame_count_ && index_ + slack < *frame_count_ && !end_reported_) {
         end_reported_ = true;
         reporter_.report(&SourceStats::undecodable_images,
                          fmt::format("{}: the video ends at frame {} of the {} its container lists (truncated or "

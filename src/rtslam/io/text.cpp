@@ -5,8 +5,8 @@
 
 #include <charconv>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -61,12 +61,14 @@ bool parse_double(std::string_view s, double& value) {
   const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
   if (ptr != s.data() + s.size()) return false;
   if (ec == std::errc::result_out_of_range) {
-    // from_chars leaves v unset on overflow (1e400) and on underflow below the subnormals (1e-400): strtod tells
-    // them apart. An overflow is not a number we can use; an underflow is ±0 (or the subnormal strtod gives).
-    const std::string copy(s);
-    const double r = std::strtod(copy.c_str(), nullptr);
-    if (!std::isfinite(r)) return false;
-    value = r;
+    // from_chars leaves v unset on overflow (1e400) and on underflow below the subnormals (1e-400); long double's
+    // range (1e±4932) tells them apart, without a locale. An overflow is not a number we can use; an underflow is
+    // ±0 (or the nearest subnormal); beyond long double too, refused.
+    long double lv = 0.0L;
+    const auto [lptr, lec] = std::from_chars(s.data(), s.data() + s.size(), lv);
+    if (lec != std::errc() || lptr != s.data() + s.size()) return false;
+    if (!(std::fabs(lv) <= static_cast<long double>(std::numeric_limits<double>::max()))) return false;
+    value = static_cast<double>(lv);
     return true;
   }
   if (ec != std::errc()) return false;

@@ -89,6 +89,26 @@ TEST(BatchCorrector, OneIterationIsTheStackedEkfUpdate) {
   EXPECT_EQ(a.map.state().covariance(), b.map.state().covariance());
 }
 
+TEST(BatchCorrector, CurrentJacobiansGiveTheSameCorrectionAsPredictingAgain) {
+  // The active search's contract (jacobians_current): the observations were predicted with their Jacobians at the
+  // current mean, then a RANSAC hypothesis left its own h in them (a prediction at another mean, no Jacobians).
+  Scene a, b;
+  Eigen::VectorXd elsewhere = b.map.state().mean_vector();
+  elsewhere.head<3>() += Eigen::Vector3d(0.05, -0.02, 0.01);
+  for (Observation* ob : b.obs) {
+    ASSERT_TRUE(predict_observation(b.map.state(), b.map.state().mean_vector(), *ob, 0.0, true));
+    predict_observation(b.map.state(), elsewhere, *ob, 0.0, false);
+  }
+  BatchCorrector corrector(8);
+  BatchCorrectionOptions o;
+  o.sigma_px = 0.5;
+  ASSERT_TRUE(corrector.correct(a.map.state(), a.obs, o).ok());
+  o.jacobians_current = true;
+  ASSERT_TRUE(corrector.correct(b.map.state(), b.obs, o).ok());
+  EXPECT_EQ(a.map.state().mean_vector(), b.map.state().mean_vector());
+  EXPECT_EQ(a.map.state().covariance(), b.map.state().covariance());
+}
+
 TEST(BatchCorrector, IteratedUpdateReachesTheMapPointAndFitsBetterThanTheEkf) {
   Scene ekf, iekf;
   const Eigen::VectorXd x0 = iekf.map.state().mean_vector();

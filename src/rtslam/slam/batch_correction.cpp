@@ -47,7 +47,8 @@ filter::CorrectionResult BatchCorrector::correct(filter::State& state, std::span
   used_flags_.assign(batch.size(), 0);
   for (std::size_t k = 0; k < batch.size(); ++k) {
     Observation* ob = batch[k];
-    if (!predict_observation(state, state.mean_vector(), *ob, 0.0, true, o.lin_mean) || !ob->projectable) {
+    if (!predict_observation(state, state.mean_vector(), *ob, 0.0, !o.jacobians_current, o.lin_mean) ||
+        !ob->projectable) {
       ob->projectable = false;
       continue;
     }

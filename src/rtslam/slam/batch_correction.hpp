@@ -27,6 +27,10 @@ struct BatchCorrectionOptions {
   int iterations = 1;
   double iteration_tolerance = 1e-6;  // m, rad
   const Eigen::VectorXd* lin_mean = nullptr;
+  // The caller's promise that every observation's Jacobians (H, R_depth) were computed at the state's current mean
+  // (and lin_mean) and nothing changed the state since: only h is predicted again (the active search predicts its
+  // candidates once a frame, then corrects them; a RANSAC hypothesis leaves its own h in them).
+  bool jacobians_current = false;
 };
 
 class BatchCorrector {

@@ -266,6 +266,10 @@ bool ActiveSearchDataManager::correct_batch(slam::Map& map, const std::vector<Ca
   bo.iterations = opt_.iterations;
   bo.iteration_tolerance = opt_.iteration_tolerance;
   bo.lin_mean = lin();
+  // Both callers correct observations predicted with their Jacobians at the current mean: the RANSAC support set
+  // (predicted in step 1, the state unchanged since: hypotheses work on a copy of the mean) and an active-search
+  // round (each member predicted in that round, the state unchanged until this correction).
+  bo.jacobians_current = true;
   const filter::CorrectionResult r = corrector_.correct(map.state(), batch_obs_, bo);
   return r.ok() && corrector_.used() > 0;
 }

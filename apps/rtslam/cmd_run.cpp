@@ -487,6 +487,7 @@ void run_dataset(const RunOptions& ro) {
   bool interrupted = false;
   nlohmann::json summary;
   std::string accuracy_line, display_line, calibration_line, realtime_line, budget_line;
+  std::string groundtruth_error;  // --groundtruth given and not usable: the run fails after writing its outputs
   std::vector<double> times;
   io::Percentiles timing;
   nlohmann::json stages;
@@ -677,6 +678,7 @@ void run_dataset(const RunOptions& ro) {
       } catch (const Error& e) {
         summary["accuracy_error"] = e.what();
         accuracy_line = fmt::format("  ATE not computed: {}\n", e.what());
+        if (!ro.groundtruth.empty()) groundtruth_error = e.what();
       }
     }
     display_line = displays.report_line(summary);
@@ -751,6 +753,10 @@ void run_dataset(const RunOptions& ro) {
   }
   if (const std::string why = pipeline::never_tracked(result); !why.empty()) {
     throw DataError(fmt::format("{}; outputs in {}/", why, ro.out));
+  }
+  if (!groundtruth_error.empty()) {
+    throw DataError(fmt::format("--groundtruth {}: no accuracy report ({}); the run's outputs are in {}/",
+                                ro.groundtruth, groundtruth_error, ro.out));
   }
 }
 

@@ -77,7 +77,8 @@ TEST(LoadYamlFile, APipeIsAnErrorNotAHang) {
   const auto path = (std::filesystem::temp_directory_path() / "rtslam_test_fifo.yaml").string();
   std::filesystem::remove(path);
   ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
-  EXPECT_EQ(message_of([&] { load_yaml_file(path); }), path + ": not a regular file (a pipe or device), not a YAML file");
+  EXPECT_EQ(message_of([&] { load_yaml_file(path); }),
+            path + ": not a regular file (a pipe or device), not a YAML file");
   std::filesystem::remove(path);
 }
 

@@ -356,8 +356,9 @@ Dataset open_images(const fs::path& root, const DatasetOptions& o) {
       // One form per file: a `time filename` line among plain times (or the reverse) would make the index pairing
       // and the count check apply to neither, and images would be dropped silently.
       if (form != 0 && static_cast<std::size_t>(form) != f.size()) {
-        throw DataError(fmt::format("{}: a '{}' line in a file whose first entry is a '{}' line: use one form", e.listed_at,
-                                    f.size() == 2 ? "time filename" : "time", form == 2 ? "time filename" : "time"));
+        throw DataError(fmt::format("{}: a '{}' line in a file whose first entry is a '{}' line: use one form",
+                                    e.listed_at, f.size() == 2 ? "time filename" : "time",
+                                    form == 2 ? "time filename" : "time"));
       }
       form = static_cast<int>(f.size());
       if (f.size() == 2) {

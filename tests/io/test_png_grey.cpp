@@ -147,6 +147,26 @@ TEST(PngGrey, DeclinesWhatItDoesNotHandleAndDamage) {
   EXPECT_NE(why.find("cannot be decoded"), std::string::npos) << why;
 }
 
+TEST(PngGrey, TruncationIsToldFromTheChunkHeaders) {
+  PngSpec parts;
+  parts.idat_parts = 3;
+  const Bytes whole = make_png(textured(40, 30), parts);
+  EXPECT_FALSE(png_truncated(whole.data(), whole.size()));
+  Bytes tail = whole;  // bytes after IEND do not matter
+  tail.insert(tail.end(), {1, 2, 3});
+  EXPECT_FALSE(png_truncated(tail.data(), tail.size()));
+  for (const std::size_t cut : {whole.size() - 1, whole.size() - 12, whole.size() / 2, std::size_t{40},
+                                std::size_t{9}}) {
+    EXPECT_TRUE(png_truncated(whole.data(), cut)) << cut;
+  }
+  PngSpec rgb;
+  rgb.colour_type = 2;
+  const Bytes colour = make_png(cv::Mat(4, 4, CV_8UC3, cv::Scalar(1, 2, 3)), rgb);
+  EXPECT_TRUE(png_truncated(colour.data(), colour.size() - 5));  // any colour type: headers only
+  const unsigned char not_png[] = {'n', 'o', 't', ' ', 'a', ' ', 'p', 'n', 'g'};
+  EXPECT_FALSE(png_truncated(not_png, sizeof not_png));
+}
+
 TEST(PngGrey, OpenCvWrittenPngsDecodeTheSame) {
   const cv::Mat img = textured(97, 33);
   for (int level : {0, 1, 9}) {

@@ -78,6 +78,19 @@ bool unfilter_rows(const unsigned char* filtered, int width, int height, cv::Mat
 
 }  // namespace
 
+bool png_truncated(const unsigned char* data, std::size_t size) {
+  static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (size < 8 || std::memcmp(data, kSignature, 8) != 0) return false;
+  std::size_t pos = 8;
+  while (true) {
+    if (size - pos < 12) return true;
+    const std::uint32_t len = be32(data + pos);
+    if (len > size - pos - 12) return true;
+    if (is_type(data + pos + 4, "IEND")) return false;
+    pos += 12 + len;
+  }
+}
+
 bool decode_png_grey8(const unsigned char* data, std::size_t size, std::size_t max_pixels, cv::Mat& out) {
   static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   if (size < 8 + 25 + 12 || std::memcmp(data, kSignature, 8) != 0) return false;

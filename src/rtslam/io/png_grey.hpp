@@ -15,4 +15,8 @@ namespace rtslam::io {
 /// `max_pixels` pixels; false otherwise (`out` then unspecified).
 bool decode_png_grey8(const unsigned char* data, std::size_t size, std::size_t max_pixels, cv::Mat& out);
 
+/// True when `data` starts as a PNG whose chunk sequence ends before its IEND chunk (a chunk running past the end of
+/// the data, or no IEND): a truncated file, which any decoder refuses. Reads only the chunk headers.
+bool png_truncated(const unsigned char* data, std::size_t size);
+
 }  // namespace rtslam::io

@@ -182,6 +182,10 @@ cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::stri
                     decode_png_grey8(data, size, static_cast<std::size_t>(kMaxImagePixels), grey)) {
     return grey;
   }
+  // A truncated PNG is refused here: libpng would print its own line ("PNG input buffer is incomplete") first.
+  if (header->format == ImageFormat::Png && png_truncated(data, size)) {
+    return fail("truncated PNG (its chunks end before IEND)");
+  }
   // imdecode logs decoder errors (e.g. libpng "Read Error") itself; callers report the failure with the file name.
   // Decoded at the file's own depth and channels (IMREAD_GRAYSCALE alone would cut 16-bit pixels to their high byte:
   // a 16-bit file holding 8-bit values would be black), then converted by to_grey8.

@@ -570,6 +570,34 @@ TEST(State, DeferredDowndateIsSeenByInnovationCovarianceAndMeanCorrection) {
     for (BlockId b : d.ids) EXPECT_EQ(MatrixXd(s.cov(a, b)), MatrixXd(s.cov(b, a)).transpose());
 }
 
+TEST(State, ScaleTangentIsDPDWithThePendingDowndateApplied) {
+  // A change of units P ← D P D over fragmented blocks, right after a correction whose downdate is still pending.
+  Rng rng(33);
+  State s;
+  DenseMirror d = fragmented_state(s, rng);
+  const Measurement z = random_measurement(d, {0, 3}, 3, rng);
+  const MatrixXd S = z.Hf * d.P * z.Hf.transpose() + z.R;
+  ASSERT_TRUE(s.correct(z.blocks, z.Hc, z.y, z.R).ok());
+  d.x += d.P * z.Hf.transpose() * S.ldlt().solve(z.y);
+  d.P -= d.P * z.Hf.transpose() * S.ldlt().solve(z.Hf * d.P);
+  ASSERT_GT(s.pending_rows(), 0);
+  VectorXd factors = VectorXd::Constant(s.tangent_capacity(), 7.0);  // rows of no block: untouched anyway
+  VectorXd dense_factors(d.x.size());
+  for (size_t a = 0; a < d.ids.size(); ++a) {
+    for (int i = 0; i < d.sizes[a]; ++i) {
+      const double f = 0.5 + 0.1 * static_cast<double>(a) + 0.01 * i;
+      factors[s.block(d.ids[a]).tangent_offset + i] = f;
+      dense_factors[d.offset_of(a) + i] = f;
+    }
+  }
+  s.scale_tangent(factors);
+  EXPECT_EQ(s.pending_rows(), 0);
+  d.P = dense_factors.asDiagonal() * d.P * dense_factors.asDiagonal();
+  expect_matches_dense(s, d, 1e-9);  // the means are the caller's: unchanged
+  for (BlockId a : d.ids)
+    for (BlockId b : d.ids) EXPECT_EQ(MatrixXd(s.cov(a, b)), MatrixXd(s.cov(b, a)).transpose());
+}
+
 TEST(State, PendingDowndateBeyondItsCapacityIsAppliedFirst) {
   Rng rng(32);
   State s(StateOptions{.tangent_capacity = 60, .max_measurement_rows = 4});

@@ -744,6 +744,18 @@ void State::defer_downdate(int m) {
   pending_ += m;
 }
 
+void State::scale_tangent(const Eigen::Ref<const VectorXd>& d) {
+  RTSLAM_CHECK(d.size() == P_.rows(), "State::scale_tangent: one factor per tangent row of the capacity");
+  apply_pending();
+  for (const Run& a : runs_) {
+    for (const Run& b : runs_) {
+      P_.block(a.begin, b.begin, a.length, b.length).array() *=
+          (d.segment(a.begin, a.length) * d.segment(b.begin, b.length).transpose()).array();
+    }
+    if (N_.cols() > 0) N_.middleRows(a.begin, a.length).array().colwise() *= d.segment(a.begin, a.length).array();
+  }
+}
+
 void State::apply_pending() const {
   if (pending_ == 0) return;
   // P_ −= U Uᵀ everywhere (one pass, lower triangle mirrored), except on the diagonal blocks, which are current:

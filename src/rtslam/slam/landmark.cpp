@@ -16,6 +16,28 @@ const char* to_string(LandmarkType t) {
 
 Landmark::~Landmark() = default;
 
+void Landmark::scale_lengths(double, const Eigen::Vector3d&, Eigen::Ref<Eigen::VectorXd>, Eigen::Ref<Eigen::VectorXd>) {
+  RTSLAM_CHECK(false, "Landmark::scale_lengths: this parametrization cannot change its unit of length");
+}
+
+void AhpPointLandmark::scale_lengths(double c, const Eigen::Vector3d& centre, Eigen::Ref<Eigen::VectorXd> mean,
+                                     Eigen::Ref<Eigen::VectorXd> d) {
+  d << c, c, c, 1.0, 1.0, 1.0, 1.0 / c;
+  mean.head<3>() = centre + c * (mean.head<3>() - centre);
+  mean[6] /= c;
+  if (first_estimate.size() == 7) {
+    first_estimate.head<3>() = centre + c * (first_estimate.head<3>() - centre);
+    first_estimate[6] /= c;
+  }
+}
+
+void EuclideanPointLandmark::scale_lengths(double c, const Eigen::Vector3d& centre, Eigen::Ref<Eigen::VectorXd> mean,
+                                           Eigen::Ref<Eigen::VectorXd> d) {
+  d.setConstant(c);
+  mean = centre + c * (mean - centre);
+  if (first_estimate.size() == 3) first_estimate = centre + c * (first_estimate - centre);
+}
+
 Observation* Landmark::observation_of(const Sensor& s) {
   for (auto& o : observations_)
     if (o.sensor == &s) return &o;

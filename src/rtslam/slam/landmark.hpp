@@ -47,6 +47,11 @@ class Landmark {
     (void)state, (void)mean, (void)T_WS, (void)dh_drho, (void)var_rho;
     return false;
   }
+  /// A change of the map's unit of length (Map::scale_lengths), as Robot::scale_lengths: `mean` is the block's;
+  /// the first estimate changes with it.
+  virtual bool can_scale_lengths() const { return false; }
+  virtual void scale_lengths(double c, const Eigen::Vector3d& centre, Eigen::Ref<Eigen::VectorXd> mean,
+                             Eigen::Ref<Eigen::VectorXd> d);
 
   std::vector<Observation>& observations() { return observations_; }
   const std::vector<Observation>& observations() const { return observations_; }
@@ -84,6 +89,10 @@ class AhpPointLandmark final : public Landmark {
   /// ∂h_S/∂ρ = −R_WSᵀ (p_WS − p0), and var(ρ).
   bool inverse_depth_direction(const filter::State& state, const Eigen::VectorXd& mean, const math::Pose& T_WS,
                                Eigen::Vector3d& dh_drho, double& var_rho) const override;
+  /// p0 about the centre, m unchanged, ρ / c (the point p0 + m/ρ about the centre).
+  bool can_scale_lengths() const override { return true; }
+  void scale_lengths(double c, const Eigen::Vector3d& centre, Eigen::Ref<Eigen::VectorXd> mean,
+                     Eigen::Ref<Eigen::VectorXd> d) override;
 };
 
 class EuclideanPointLandmark final : public Landmark {
@@ -93,6 +102,9 @@ class EuclideanPointLandmark final : public Landmark {
   Eigen::Vector3d to_sensor(const Eigen::VectorXd& mean, const math::Pose& T_WS, Eigen::Matrix<double, 3, 6>* J_h_TWS,
                             LandmarkJacobian* J_h_L) const override;
   Eigen::Vector3d position(const Eigen::VectorXd& mean) const override;
+  bool can_scale_lengths() const override { return true; }
+  void scale_lengths(double c, const Eigen::Vector3d& centre, Eigen::Ref<Eigen::VectorXd> mean,
+                     Eigen::Ref<Eigen::VectorXd> d) override;
 };
 
 }  // namespace rtslam::slam

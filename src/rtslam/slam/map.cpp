@@ -1,6 +1,7 @@
 #include "rtslam/slam/map.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include <fmt/format.h>
 
@@ -83,6 +84,24 @@ void Map::remove_landmark(Landmark& lmk) {
   RTSLAM_CHECK(it != landmarks_.end(), "remove_landmark: landmark not in this map");
   state_.remove_block(lmk.block());
   landmarks_.erase(it);
+}
+
+bool Map::scale_lengths(double c, const Eigen::Vector3d& centre) {
+  RTSLAM_CHECK(c > 0.0 && std::isfinite(c), "Map::scale_lengths: the factor must be positive and finite");
+  if (state_.block_count() != static_cast<int>(robots_.size() + landmarks_.size())) return false;
+  for (const auto& r : robots_)
+    if (!r->can_scale_lengths()) return false;
+  for (const auto& l : landmarks_)
+    if (!l->can_scale_lengths()) return false;
+  length_factors_.setOnes(state_.covariance().rows());
+  const auto scale_block = [&](filter::BlockId b, auto& owner) {
+    const filter::BlockInfo& info = state_.block(b);
+    owner.scale_lengths(c, centre, state_.mean(b), length_factors_.segment(info.tangent_offset, info.tangent_size()));
+  };
+  for (const auto& r : robots_) scale_block(r->block(), *r);
+  for (const auto& l : landmarks_) scale_block(l->block(), *l);
+  state_.scale_tangent(length_factors_);
+  return true;
 }
 
 Landmark* Map::find_landmark(int id) const {

@@ -45,6 +45,13 @@ class Map {
   void remove_landmark(Landmark& lmk);
   const std::vector<std::unique_ptr<Landmark>>& landmarks() const { return landmarks_; }
   Landmark* find_landmark(int id) const;
+  /// Changes the map's unit of length about the point `centre` (W): every position of the state (robots, landmarks,
+  /// anchors) moves to centre + c (p − centre), c > 0, inverse distances are divided by c, directions, attitudes
+  /// and unit-free states keep their values, and the covariance and the unobservable basis are transformed alike
+  /// (P ← D P D, N ← D N). A camera at its robot's origin sees every landmark in the same direction after it. False,
+  /// and nothing changed, when a robot or landmark cannot (Robot::can_scale_lengths) or the state holds other blocks
+  /// (a sensor's states, such as its extrinsics, are metric).
+  bool scale_lengths(double c, const Eigen::Vector3d& centre = Eigen::Vector3d::Zero());
   /// A new sensor (or input stream) id, unique in this map.
   int take_sensor_id() { return next_sensor_id_++; }
 
@@ -55,6 +62,7 @@ class Map {
   std::vector<std::unique_ptr<Landmark>> landmarks_;
   int next_landmark_id_ = 0;
   int next_sensor_id_ = 0;
+  Eigen::VectorXd length_factors_;  // scale_lengths' workspace (tangent capacity)
   friend class Robot;
 };
 

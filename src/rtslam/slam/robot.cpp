@@ -83,6 +83,11 @@ void Robot::reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& cov, TimeN
   map_->state().remove_block(block_);
   allocate_block(mean, cov);
   fej_valid_ = false;
+  restarted();
+}
+
+void Robot::scale_lengths(double, const Eigen::Vector3d&, Eigen::Ref<Eigen::VectorXd>, Eigen::Ref<Eigen::VectorXd>) {
+  RTSLAM_CHECK(false, "Robot::scale_lengths: this robot's state cannot change its unit of length");
 }
 
 ConstantVelocityRobot::ConstantVelocityRobot(models::ConstantVelocityParams params, std::string name)

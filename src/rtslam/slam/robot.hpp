@@ -66,6 +66,14 @@ class Robot {
   /// holds its state over the next prediction instead of integrating its inputs (OpenVINS's zero-velocity update
   /// does the same), the inputs' noise integrated over a standstill being all drift. Robots without inputs ignore it.
   virtual void set_at_rest(bool /*at_rest*/) {}
+  /// A change of the map's unit of length (Map::scale_lengths): whether every length in the robot's state can be
+  /// multiplied by a factor (a robot with metric states, e.g. gravity, cannot: false by default).
+  virtual bool can_scale_lengths() const { return false; }
+  /// Scales the lengths in `mean` (the block's ambient mean) by c about `centre` (positions p → centre + c (p −
+  /// centre), other lengths × c) and writes each tangent row's factor into d (1 for attitudes and unit-free states).
+  /// Only for a robot that can_scale_lengths().
+  virtual void scale_lengths(double c, const Eigen::Vector3d& centre, Eigen::Ref<Eigen::VectorXd> mean,
+                             Eigen::Ref<Eigen::VectorXd> d);
 
   Sensor& add_sensor(std::unique_ptr<Sensor> sensor);
   /// Gives the sensors without an id one from the map's counter (System::add_robot: data name their sensor before
@@ -90,6 +98,8 @@ class Robot {
  protected:
   bool fej_ = false;
   bool fej_valid_ = false;  // fej_x_ holds the first estimate at time_
+  /// After reset(): the robot's own bookkeeping of the map it was in (its landmarks are gone).
+  virtual void restarted() {}
   explicit Robot(std::string name) : name_(std::move(name)) {}
   Map* map_ = nullptr;
   filter::BlockId block_ = filter::kNoBlock;

@@ -593,6 +593,11 @@ void run_dataset(const RunOptions& ro) {
       if (o.position_sensor.enabled || o.pose_sensor.enabled) {
         summary["absolute"] = {{"corrections_applied", abs_updates}, {"corrections_rejected", abs_rejected}};
       }
+      if (o.robot == "odometry") {
+        summary["odometry"] = {{"rescale", result.odometry_rescale},
+                               {"rescales", result.odometry_rescales},
+                               {"rescale_product", result.odometry_rescale_product}};
+      }
     }
     summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
     summary["input"] = ds.source->stats().to_json();
@@ -735,6 +740,11 @@ void run_dataset(const RunOptions& ro) {
           ? fmt::format("  IMU: {}; {} samples, {} gyro / {} accel saturated; {} images before the start\n",
                         result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
                         result.imu_accel_saturated, result.images_before_start)
+          : std::string()) +
+      (result.odometry_rescale
+          ? fmt::format("  odometry: the map's scale kept at the odometry's (odometry/rescale): {} rescale(s), "
+                        "factor {:.4f} in all\n",
+                        result.odometry_rescales, result.odometry_rescale_product)
           : std::string()),
       calibration_line, realtime_line + budget_line, display_line, ro.out);
   std::cout << std::flush;

@@ -67,8 +67,9 @@ TEST(SlamBounds, StateCapacityAndOtherSlamKeysHaveUpperBounds) {
 
 TEST(OdometryOptions, KeysAreReadWrittenAndBounded) {
   ImageSlamOptions o;
-  apply_image_slam_config(YAML::Load("slam: {robot: odometry}\nodometry: {sigma_p: 0.02, k_theta: 0.1}"), "test.yaml",
-                          o);
+  apply_image_slam_config(YAML::Load("slam: {robot: odometry}\nodometry: {sigma_p: 0.02, k_theta: 0.1, rescale: off, "
+                                     "rescale_window: 2, rescale_max_se: 0.05, rescale_min_z: 3}"),
+                          "test.yaml", o);
   EXPECT_EQ(o.robot, "odometry");
   EXPECT_EQ(o.odometry.sigma_p, 0.02);
   EXPECT_EQ(o.odometry.k_theta, 0.1);
@@ -76,6 +77,17 @@ TEST(OdometryOptions, KeysAreReadWrittenAndBounded) {
   apply_image_slam_config(to_yaml(o), "dump", back);
   EXPECT_EQ(back.odometry.sigma_p, 0.02);
   EXPECT_EQ(back.odometry.k_theta, 0.1);
+  EXPECT_EQ(back.odometry_rescale, "off");
+  EXPECT_EQ(back.odometry_scale.window_m, 2.0);
+  EXPECT_EQ(back.odometry_scale.max_se, 0.05);
+  EXPECT_EQ(back.odometry_scale.min_z, 3.0);
+  ImageSlamOptions fresh;
+  EXPECT_EQ(error_of([&] { apply_image_slam_config(YAML::Load("odometry: {rescale: maybe}"), "test.yaml", fresh); }),
+            "test.yaml: odometry/rescale = 'maybe' must be auto, on or off");
+  ImageSlamOptions fresh2;
+  EXPECT_EQ(
+      error_of([&] { apply_image_slam_config(YAML::Load("odometry: {rescale_window: 0}"), "test.yaml", fresh2); }),
+      "test.yaml: odometry/rescale_window = 0 must be in (0, 1000] m");
   EXPECT_EQ(error_of([&] { apply_image_slam_config(YAML::Load("odometry: {k_p: 11}"), "test.yaml", o); }),
             "test.yaml: odometry/k_p = 11 must be in [0, 10] m/sqrt(m)");
   EXPECT_NE(error_of([&] { apply_image_slam_config(YAML::Load("odometry: {k: 1}"), "test.yaml", o); }).find("k"),

@@ -1,6 +1,7 @@
 // The odometry-driven robot in the System's loop (slam/odometry_robot.hpp): increments route to it by its input id,
 // data wait until the increments cover them, the increment that straddles the start is applied from the start on,
-// a straddling increment is split in proportion of time (mean and noise), and broken input streams are refused.
+// a straddling increment is split in proportion of time (mean and noise), and broken input streams are refused;
+// the map's scale is kept at the odometry's (OdometryScaleOptions, Map::scale_lengths).
 #include <cmath>
 #include <utility>
 
@@ -8,6 +9,7 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/math/rotation.hpp"
+#include "rtslam/slam/landmark_init.hpp"
 #include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
@@ -40,14 +42,14 @@ struct OdometryRig {
   OdometryRobot* robot = nullptr;
   int input_id = -1;
   models::OdometryParams params;
-  OdometryRig() {
+  explicit OdometryRig(OdometryScaleOptions scale = {}) {
     params.sigma_p = 0.1;
     params.sigma_theta = 0.2;
     params.k_p = 0.3;
     params.k_theta = 0.4;
     map = &world.add_map();
     system = std::make_unique<System>(world, *map, std::make_unique<NoMapManager>());
-    auto r = std::make_unique<OdometryRobot>(params);
+    auto r = std::make_unique<OdometryRobot>(params, "robot", scale);
     robot = r.get();
     models::CameraIntrinsics c;
     c.width = 640;
@@ -132,6 +134,106 @@ TEST(OdometryRobot, BrokenInputStreamsAreRefused) {
   rig.odometry(30 * kNsPerMs, 0.01, 0.0);  // (20, 30]: the gap (10, 20] is no motion
   rig.image(25 * kNsPerMs);
   EXPECT_NEAR(rig.robot->pose().p.x(), 0.002 + 0.005, 1e-12);  // (8, 10] and (20, 25]
+}
+
+// Starts the rig's robot at the origin at 10 ms.
+void start(OdometryRig& rig) {
+  rig.odometry(10 * kNsPerMs, 0.01, 0.0);
+  rig.image(10 * kNsPerMs);
+}
+
+// Drives the started rig 1 m/s straight ahead for `seconds`, images at 20 Hz, as a filter whose path comes out
+// `stretch` times the odometry's (as the monocular EKF's map scale makes it, docs/odometry-scale.md) until the map
+// is first rescaled; returns the distance travelled then (0: never).
+double drive_stretched(OdometryRig& rig, double stretch, double seconds) {
+  constexpr TimeNs kStep = 10 * kNsPerMs;
+  double dead_reckoning = 0.0;
+  for (TimeNs t = 2 * kStep; t <= static_cast<TimeNs>(seconds * 100.0) * kStep; t += kStep) {
+    rig.odometry(t, 0.01, 0.0);
+    dead_reckoning += 0.01;
+    if (t % (5 * kStep) != 0) continue;
+    rig.image(t);
+    if (rig.robot->rescales() > 0) return dead_reckoning;
+    rig.map->state().mean(rig.robot->block())[0] = stretch * dead_reckoning;
+  }
+  return 0.0;
+}
+
+// The robot compares its windows of odometry with its estimated displacements and changes the map's unit of length
+// by the least-squares factor, 0.8, once its standard error is small enough; the landmarks scale with it.
+TEST(OdometryRobot, KeepsTheMapAtTheOdometryScale) {
+  OdometryRig rig(OdometryScaleOptions{.enabled = true, .window_m = 0.5, .max_se = 0.2, .min_z = 0.0});
+  start(rig);
+  Landmark* ahp = init_ahp_landmark(*rig.map, *rig.camera, {300, 200}, 1.0, models::AhpPrior{}, 0);
+  Landmark* other = init_ahp_landmark(*rig.map, *rig.camera, {500, 300}, 1.0, models::AhpPrior{}, 0);
+  ASSERT_NE(ahp, nullptr);
+  ASSERT_NE(other, nullptr);
+  Landmark* euclidean = reparametrize_to_euclidean(*rig.map, *other);
+  ASSERT_NE(euclidean, nullptr);
+  filter::State& st = rig.map->state();
+  const Eigen::Vector3d ahp_before = ahp->position(st.mean_vector());
+  const Eigen::Vector3d euclidean_before = euclidean->position(st.mean_vector());
+  const Eigen::Matrix3d euclidean_cov_before = st.cov(euclidean->block());
+  const double rho_before = st.mean(ahp->block())[6];
+  const double first_rescale_at = drive_stretched(rig, 1.25, 3.0);
+  // Windows close at an image's prediction, from the posterior of the previous image: the first from the start
+  // (0.01 s) to 0.55 s (0.54 m), the next ones 0.5 m each. Each adds w |Δs|² = (1.25 L)² / (0.1² L + 0.3² L) to
+  // the sum (8.4, then 7.8), and the standard error 1/sqrt(sum) is 0.34, 0.25, 0.204, then 0.18 < 0.2: the map is
+  // rescaled at the prediction to the image after 2.05 s.
+  EXPECT_GT(first_rescale_at, 2.0);
+  EXPECT_LT(first_rescale_at, 2.2);
+  EXPECT_EQ(rig.robot->rescales(), 1);
+  EXPECT_NEAR(rig.robot->rescale_product(), 0.8, 1e-9);
+  EXPECT_NEAR(rig.robot->pose().p.x(), first_rescale_at, 1e-9);  // 0.8 × 1.25 × the odometry's
+  EXPECT_LT((ahp->position(st.mean_vector()) - 0.8 * ahp_before).norm(), 1e-9);
+  EXPECT_NEAR(st.mean(ahp->block())[6], rho_before / 0.8, 1e-12);
+  EXPECT_LT((euclidean->position(st.mean_vector()) - 0.8 * euclidean_before).norm(), 1e-9);
+  EXPECT_LT((Eigen::Matrix3d(st.cov(euclidean->block())) - 0.64 * euclidean_cov_before).norm(),
+            1e-9 * euclidean_cov_before.norm());
+}
+
+TEST(OdometryRobot, TheMapIsRescaledOnlyWhenAskedOnceTheOdometryKnowsTheScale) {
+  {
+    OdometryRig rig;  // OdometryScaleOptions{}: off
+    start(rig);
+    EXPECT_EQ(drive_stretched(rig, 1.25, 30.0), 0.0);
+  }
+  {
+    // The defaults (max_se 0.05): this very noisy odometry (k_p 0.3 m/√m) knows the scale to 5 % after
+    // 1 / 0.05² = 400 of the sum, 52 windows (26 m).
+    OdometryRig rig(OdometryScaleOptions{.enabled = true});
+    start(rig);
+    const double at = drive_stretched(rig, 1.25, 30.0);
+    EXPECT_GT(at, 26.0);
+    EXPECT_LT(at, 26.2);
+    EXPECT_NEAR(rig.robot->rescale_product(), 0.8, 1e-9);
+  }
+  {
+    // With min_z 2, a path 1 % long is not rescaled: within two standard errors (0.09 after 30 m).
+    OdometryRig rig(OdometryScaleOptions{.enabled = true, .max_se = 0.1, .min_z = 2.0});
+    start(rig);
+    EXPECT_EQ(drive_stretched(rig, 1.01, 30.0), 0.0);
+  }
+}
+
+TEST(Map, ScaleLengthsRefusesAStateWithBlocksItCannotRescale) {
+  OdometryRig rig;
+  rig.odometry(10 * kNsPerMs, 0.01, 0.0);
+  rig.image(10 * kNsPerMs);
+  ASSERT_TRUE(rig.map->scale_lengths(2.0));
+  EXPECT_NEAR(rig.robot->pose().p.x(), 0.0, 0.0);
+  rig.odometry(20 * kNsPerMs, 0.01, 0.0);
+  rig.image(20 * kNsPerMs);
+  const double x = rig.robot->pose().p.x();
+  EXPECT_NEAR(x, 0.01, 1e-15);
+  // A block of a sensor (metric extrinsics, say) that the map does not know how to rescale: nothing changes.
+  const Eigen::Vector3d extrinsics(0.1, 0.0, 0.0);
+  ASSERT_TRUE(rig.map->state()
+                  .add_block(filter::BlockLayout::euclidean(3), extrinsics, Eigen::Matrix3d::Identity())
+                  .has_value());
+  EXPECT_FALSE(rig.map->scale_lengths(2.0));
+  EXPECT_EQ(rig.robot->pose().p.x(), x);
+  EXPECT_THROW(rig.map->scale_lengths(0.0), InvariantError);
 }
 
 }  // namespace

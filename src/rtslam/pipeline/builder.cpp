@@ -74,14 +74,19 @@ Registry Registry::builtin() {
         if (!c.options.known_landmarks.empty()) {
           throw ConfigError("slam/known_landmarks is not supported with slam/robot = odometry yet");
         }
-        if (c.options.camera_indices().size() == 1 && !c.options.position_sensor.enabled &&
-            !c.options.pose_sensor.enabled) {
+        // With one camera and no absolute sensor only the odometry tells the scale, and the EKF alone makes it
+        // badly (slam::OdometryScaleOptions): the map's scale is kept at the odometry's unless told otherwise.
+        const bool scale_from_odometry = c.options.camera_indices().size() == 1 && !c.options.position_sensor.enabled &&
+                                         !c.options.pose_sensor.enabled;
+        slam::OdometryScaleOptions scale = c.options.odometry_scale;
+        scale.enabled =
+            c.options.odometry_rescale == "on" || (c.options.odometry_rescale == "auto" && scale_from_odometry);
+        if (scale_from_odometry && !scale.enabled) {
           logger("slam")->warn(
-              "slam/robot: odometry with one camera: the map's scale, and with it the trajectory, can come out worse "
-              "than the odometry alone (issue 15, docs/configuration.md section odometry); two cameras "
-              "(slam/cameras: [0, 1]) or an absolute sensor give the scale");
+              "slam/robot: odometry with one camera and odometry/rescale off: the map's scale, and with it the "
+              "trajectory, can come out worse than the odometry alone (docs/configuration.md section odometry)");
         }
-        return std::make_unique<slam::OdometryRobot>(c.options.odometry);
+        return std::make_unique<slam::OdometryRobot>(c.options.odometry, "robot", scale);
       },
       [](const BuildContext& c, const BuiltSystem&) -> std::unique_ptr<slam::RobotStarter> {
         // At the first image, at the given pose [p q] (a known start) or the origin with zero covariance (the gauge).

@@ -51,20 +51,30 @@ YAML::Node motion_to_yaml(const models::ConstantVelocityParams& motion) {
   return n;
 }
 
-void read_odometry(YamlMap m, models::OdometryParams& odometry) {
+void read_odometry(YamlMap m, models::OdometryParams& odometry, std::string& rescale,
+                   slam::OdometryScaleOptions& scale) {
   m.get("sigma_p", odometry.sigma_p);
   m.get("sigma_theta", odometry.sigma_theta);
   m.get("k_p", odometry.k_p);
   m.get("k_theta", odometry.k_theta);
+  m.get("rescale", rescale);
+  m.get("rescale_window", scale.window_m);
+  m.get("rescale_max_se", scale.max_se);
+  m.get("rescale_min_z", scale.min_z);
   m.finish();
 }
 
-YAML::Node odometry_to_yaml(const models::OdometryParams& odometry) {
+YAML::Node odometry_to_yaml(const models::OdometryParams& odometry, const std::string& rescale,
+                            const slam::OdometryScaleOptions& scale) {
   YAML::Node n;
   n["sigma_p"] = odometry.sigma_p;
   n["sigma_theta"] = odometry.sigma_theta;
   n["k_p"] = odometry.k_p;
   n["k_theta"] = odometry.k_theta;
+  n["rescale"] = rescale;
+  n["rescale_window"] = scale.window_m;
+  n["rescale_max_se"] = scale.max_se;
+  n["rescale_min_z"] = scale.min_z;
   return n;
 }
 

@@ -65,6 +65,10 @@ void ImageSlamOptions::validate() const {
   }
   motion.validate();
   odometry.validate();
+  if (odometry_rescale != "auto" && odometry_rescale != "on" && odometry_rescale != "off") {
+    throw ConfigError(fmt::format("odometry/rescale = '{}' must be auto, on or off", odometry_rescale));
+  }
+  odometry_scale.validate();
   search.validate();
   map.validate();
   health.validate();
@@ -127,7 +131,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
     s.finish();
   }
   read_motion(top.child("motion"), o.motion);
-  read_odometry(top.child("odometry"), o.odometry);
+  read_odometry(top.child("odometry"), o.odometry, o.odometry_rescale, o.odometry_scale);
   read_inertial(top.child("imu"), o.imu);
   if (top.has("search")) {
     YamlMap a = top.child("search");
@@ -183,7 +187,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["slam"]["overlay_frame"] = o.overlay_frame;
   root["slam"]["overlay_path"] = o.overlay_path;
   root["motion"] = motion_to_yaml(o.motion);
-  root["odometry"] = odometry_to_yaml(o.odometry);
+  root["odometry"] = odometry_to_yaml(o.odometry, o.odometry_rescale, o.odometry_scale);
   root["imu"] = inertial_to_yaml(o.imu);
   root["search"] = o.search.to_yaml();
   root["map_manager"] = map_policy_to_yaml(o.map);
@@ -487,6 +491,11 @@ struct ImageSlam::Impl final : slam::Observer {
     result.frames_diverged = counts.frames_diverged;
     result.resets = counts.resets;
     result.final_health = counts.final_health;
+    if (const auto* odo_robot = dynamic_cast<const slam::OdometryRobot*>(&robot)) {
+      result.odometry_rescale = odo_robot->keeps_scale();
+      result.odometry_rescales = odo_robot->rescales();
+      result.odometry_rescale_product = odo_robot->rescale_product();
+    }
     result.frame_gaps = system.health(0).frame_gaps();
     const Eigen::VectorXd& mean = map.state().mean_vector();
     if (const auto* imu_robot = dynamic_cast<const slam::InertialRobot*>(&robot)) {

@@ -17,7 +17,8 @@
 //                 rate_hz,
 //                 known_landmarks, known_landmarks_convention, overlay_frame, overlay_path}
 //   motion:      {sigma_v, sigma_w}                (constant-velocity robot)
-//   odometry:    {sigma_p, sigma_theta, k_p, k_theta} (odometry robot: wheel-odometry increments drive it)
+//   odometry:    {sigma_p, sigma_theta, k_p, k_theta, rescale, rescale_window, rescale_max_se, rescale_min_z}
+//                (odometry robot: wheel-odometry increments drive it)
 //   imu:         see inertial_init.hpp             (inertial robot)
 //   search:      see strategies::ActiveSearchOptions::from_yaml
 //   map_manager: {policy: global|visual_odometry, map_size, reparam_threshold, min_searches_to_judge,
@@ -43,10 +44,11 @@
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/models/robots/constant_velocity.hpp"
 #include "rtslam/models/robots/odometry.hpp"
-#include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
+#include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/slam/health.hpp"
 #include "rtslam/slam/managers.hpp"
+#include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/time_offset.hpp"
 #include "rtslam/strategies/absolute.hpp"
 #include "rtslam/strategies/active_search.hpp"
@@ -86,6 +88,11 @@ struct ImageSlamOptions {
   std::optional<double> sim_camera_time_offset_ms;  // the simulated images' camera–IMU offset (default: the preset's)
   models::ConstantVelocityParams motion;
   models::OdometryParams odometry;  // odometry robot (slam/robot: odometry): the increments' noise
+  // odometry/rescale: auto (one camera, no absolute sensor: the map's scale kept at the odometry's), on, off;
+  // odometry/rescale_window, rescale_max_se, rescale_min_z (slam::OdometryScaleOptions; `enabled` is resolved by
+  // the builder)
+  std::string odometry_rescale = "auto";
+  slam::OdometryScaleOptions odometry_scale;
   InertialOptions imu;
   strategies::ActiveSearchOptions search;
   strategies::KnownAssociationOptions association;  // the known_association data manager's (point data; not in YAML)
@@ -134,6 +141,11 @@ struct ImageSlamResult {
   int frame_gaps = 0;  // gaps between processed images longer than health/max_frame_gap
   slam::Health final_health = slam::Health::Ok;
   int cameras = 1;  // cameras on the robot (several: the scale is known from their baseline)
+  // Odometry robot: whether its map's scale was kept at the odometry's (odometry/rescale), its rescales and the
+  // product of their factors.
+  bool odometry_rescale = false;
+  int odometry_rescales = 0;
+  double odometry_rescale_product = 1.0;
   // Inertial runs.
   bool inertial = false;
   std::string inertial_start;                   // InertialStart::describe() of the initialization

@@ -1,17 +1,93 @@
 #include "rtslam/slam/odometry_robot.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
 #include "rtslam/slam/map.hpp"
 
 namespace rtslam::slam {
 
-OdometryRobot::OdometryRobot(models::OdometryParams params, std::string name)
-    : Robot(std::move(name)), params_(params) {
+void OdometryScaleOptions::validate() const {
+  if (!(window_m > 0.0 && window_m <= 1000.0)) {
+    throw ConfigError(fmt::format("odometry/rescale_window = {} must be in (0, 1000] m", window_m));
+  }
+  if (!(max_se > 0.0 && max_se <= 1.0)) {
+    throw ConfigError(fmt::format("odometry/rescale_max_se = {} must be in (0, 1]", max_se));
+  }
+  if (!(min_z >= 0.0 && min_z <= 100.0)) {
+    throw ConfigError(fmt::format("odometry/rescale_min_z = {} must be in [0, 100]", min_z));
+  }
+}
+
+OdometryRobot::OdometryRobot(models::OdometryParams params, std::string name, OdometryScaleOptions scale)
+    : Robot(std::move(name)), params_(params), scale_(scale) {
   params_.validate();
+  scale_.validate();
+}
+
+void OdometryRobot::scale_lengths(double c, const Eigen::Vector3d& centre, Eigen::Ref<Eigen::VectorXd> mean,
+                                  Eigen::Ref<Eigen::VectorXd> d) {
+  d.setOnes();
+  d.head<3>().setConstant(c);
+  mean.head<3>() = centre + c * (mean.head<3>() - centre);
+  fej_x_.head<3>() = centre + c * (fej_x_.head<3>() - centre);
+  window_p_ = centre + c * (window_p_ - centre);  // the current window and the windows so far, in the new unit
+  sum_os_ *= c;
+  sum_ss_ *= c * c;
+}
+
+void OdometryRobot::restarted() {
+  window_open_ = false;  // a new map, whose scale is its own
+  start_p_.reset();
+  sum_os_ = sum_ss_ = 0.0;
+}
+
+void OdometryRobot::keep_scale() {
+  if (!scale_.enabled || map_->robots().size() != 1) return;
+  const auto x = map_->state().mean(block_);  // the posterior at time_
+  const Eigen::Vector3d p = x.head<3>();
+  if (!start_p_) start_p_ = p;
+  if (window_open_ && odo_length_ >= scale_.window_m) {
+    const Eigen::Vector3d ds = p - window_p_;
+    const Eigen::Vector3d d_odo = window_R_ * odo_p_;
+    const double var = params_.sigma_p * params_.sigma_p * odo_time_ + params_.k_p * params_.k_p * odo_length_;
+    if (var > 0.0) {
+      sum_os_ += d_odo.dot(ds) / var;
+      sum_ss_ += ds.squaredNorm() / var;
+    }
+    window_open_ = false;
+    const double se = sum_ss_ > 0.0 ? 1.0 / std::sqrt(sum_ss_) : 1.0;
+    const double s = sum_ss_ > 0.0 ? sum_os_ / sum_ss_ : 1.0;
+    // Rescaled once the odometry knows the scale well enough (and, with min_z > 0, only when its factor differs
+    // significantly from the map's).
+    if (se < scale_.max_se && std::abs(s - 1.0) > scale_.min_z * se && std::isfinite(s) && s > 0.0) {
+      const double c = std::clamp(s, 0.5, 2.0);
+      if (map_->scale_lengths(c, *start_p_)) {
+        ++rescales_;
+        rescale_product_ *= c;
+        logger("slam")->debug("t = {:.3f} s: map rescaled by {:.4f} to the odometry's scale (standard error {:.1f} %)",
+                              to_seconds(time_), c, 100.0 * se);
+      } else {
+        scale_.enabled = false;
+        logger("slam")->warn(
+            "robot '{}': the map's scale cannot be kept at the odometry's (odometry/rescale): its "
+            "state holds blocks that cannot change their unit of length",
+            name());
+      }
+    }
+  }
+  if (!window_open_) {
+    window_open_ = true;
+    window_p_ = map_->state().mean(block_).head<3>();
+    window_R_ = math::quat_from_wxyz(x.segment<4>(3)).toRotationMatrix();
+    odo_p_.setZero();
+    odo_R_.setIdentity();
+    odo_length_ = odo_time_ = 0.0;
+  }
 }
 
 filter::BlockLayout OdometryRobot::static_layout() { return filter::BlockLayout::euclidean(3).then_quaternion(); }
@@ -45,6 +121,7 @@ bool OdometryRobot::predict_to(TimeNs t) {
     throw DataError(fmt::format("robot '{}': the odometry does not cover t = {} ns (last reading at {})", name(), t,
                                 last_t_ ? fmt::format("{} ns", *last_t_) : std::string("none")));
   }
+  keep_scale();
   filter::State& state = map_->state();
   x_ = state.mean(block_);
   const bool fej = fej_ && fej_valid_;
@@ -67,6 +144,12 @@ bool OdometryRobot::predict_to(TimeNs t) {
       models::odometry_predict(x_, part, x_, &F_, &G_);
     }
     U_ = models::odometry_input_covariance(part, params_);
+    if (window_open_) {  // the odometry's own dead reckoning over the scale window
+      odo_p_ += odo_R_ * part.dp;
+      odo_R_ = odo_R_ * math::exp_so3(part.dtheta).toRotationMatrix();
+      odo_length_ += part.dp.norm();
+      odo_time_ += part.dt;
+    }
     tmp_.noalias() = F_ * Phi_;
     Phi_ = tmp_;
     tmp_.noalias() = F_ * Qacc_;

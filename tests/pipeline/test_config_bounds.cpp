@@ -10,6 +10,7 @@
 #include "rtslam/pipeline/image_slam.hpp"
 #include "rtslam/pipeline/inertial_init.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
+#include "rtslam/sim/simulation.hpp"
 
 namespace rtslam::pipeline {
 namespace {
@@ -92,6 +93,23 @@ TEST(OdometryOptions, KeysAreReadWrittenAndBounded) {
             "test.yaml: odometry/k_p = 11 must be in [0, 10] m/sqrt(m)");
   EXPECT_NE(error_of([&] { apply_image_slam_config(YAML::Load("odometry: {k: 1}"), "test.yaml", o); }).find("k"),
             std::string::npos);
+}
+
+TEST(OdometryOptions, RescaleOnWithAnAbsoluteSensorIsRefused) {
+  // The absolute sensor gives the map's scale: keeping it at the odometry's would fight it.
+  ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/sim_mono.yaml");
+  o.robot = "odometry";
+  o.odometry_rescale = "on";
+  o.position_sensor.enabled = true;
+  o.position_sensor.world = "start";
+  sim::SimConfig sc = sim::SimConfig::load(o.sim_preset);
+  sc.duration_s = 0.5;
+  sc.odometry.enabled = true;
+  sc.gps.enabled = true;
+  io::Dataset ds = sim::Simulation::create(sc)->make_dataset();
+  EXPECT_EQ(error_of([&] { run_image_slam(ds, o); }),
+            "odometry/rescale = on cannot be used with an absolute sensor (position_sensor, pose_sensor): the sensor "
+            "gives the map's scale");
 }
 
 TEST(ImuOptionsBounds, PriorsAndSaturationsHaveUpperBounds) {

@@ -12,8 +12,9 @@
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
-#include "rtslam/slam/system.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/slam/landmark_init.hpp"
+#include "rtslam/slam/system.hpp"
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/init_grid.hpp"
 #include "rtslam/strategies/map_policies.hpp"
@@ -567,6 +568,33 @@ TEST(ActiveSearchBudget, TheBudgetKeyIsRangeChecked) {
   o.time_budget_ms = 0.25;
   YAML::Node n = o.to_yaml();
   EXPECT_EQ(n["time_budget_ms"].as<double>(), 0.25);
+}
+
+// A change of the map's unit of length (slam::Map::scale_lengths) moves the views of the patches of the landmarks
+// the manager's sensor made, also when another holder shares a landmark's descriptor (then copied, the holder's
+// own left as it was); landmarks another sensor made are not its business.
+TEST(ActiveSearch, PatchViewsFollowAChangeOfTheMapsUnitOfLength) {
+  Rig rig(math::Pose{Eigen::Quaterniond::Identity(), Eigen::Vector3d(1.0, 2.0, 0.5)});
+  ActiveSearchDataManager dm(test_options(), rig.map_manager, 320, 240, 11);
+  const auto with_view = [&](const Eigen::Vector3d& p, int sensor_id) {
+    slam::Landmark* l = slam::init_ahp_landmark(*rig.map, *rig.sensor, {160, 120}, 1.0, models::AhpPrior{}, 0);
+    EXPECT_NE(l, nullptr);
+    auto d = std::make_shared<PointDescriptor>();
+    d->T_WS0.p = p;
+    l->descriptor = PointDescriptorPtr(d);
+    l->sensor_created = sensor_id;
+    return l;
+  };
+  slam::Landmark* own = with_view({1.0, 2.0, 0.5}, rig.sensor->id());
+  slam::Landmark* shared = with_view({3.0, -1.0, 0.0}, rig.sensor->id());
+  slam::Landmark* foreign = with_view({5.0, 5.0, 5.0}, rig.sensor->id() + 1);
+  const PointDescriptorPtr holder = std::any_cast<PointDescriptorPtr>(shared->descriptor);
+  const Eigen::Vector3d centre(1.0, 0.0, 0.0);
+  dm.scale_lengths(*rig.map, *rig.sensor, 0.5, centre);
+  EXPECT_LT((point_descriptor(*own)->T_WS0.p - Eigen::Vector3d(1.0, 1.0, 0.25)).norm(), 1e-15);
+  EXPECT_LT((point_descriptor(*shared)->T_WS0.p - Eigen::Vector3d(2.0, -0.5, 0.0)).norm(), 1e-15);
+  EXPECT_EQ(holder->T_WS0.p, Eigen::Vector3d(3.0, -1.0, 0.0));
+  EXPECT_EQ(point_descriptor(*foreign)->T_WS0.p, Eigen::Vector3d(5.0, 5.0, 5.0));
 }
 
 }  // namespace

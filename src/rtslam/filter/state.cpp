@@ -744,15 +744,31 @@ void State::defer_downdate(int m) {
   pending_ += m;
 }
 
-void State::scale_tangent(const Eigen::Ref<const VectorXd>& d) {
+void State::scale_tangent(const Eigen::Ref<const VectorXd>& d, const Eigen::Ref<const MatrixXd>& M) {
   RTSLAM_CHECK(d.size() == P_.rows(), "State::scale_tangent: one factor per tangent row of the capacity");
+  RTSLAM_CHECK(M.size() == 0 || (M.rows() == N_.cols() && M.cols() == N_.cols()),
+               "State::scale_tangent: the basis's change of columns is nullspace_dim square");
   apply_pending();
+  constexpr int kMaxBasis = 8;
+  RTSLAM_CHECK(N_.cols() <= kMaxBasis, "State::scale_tangent: at most 8 basis columns");
   for (const Run& a : runs_) {
     for (const Run& b : runs_) {
-      P_.block(a.begin, b.begin, a.length, b.length).array() *=
-          (d.segment(a.begin, a.length) * d.segment(b.begin, b.length).transpose()).array();
+      for (int j = b.begin; j < b.begin + b.length; ++j)
+        for (int i = a.begin; i < a.begin + a.length; ++i) P_(i, j) *= d[i] * d[j];
     }
-    if (N_.cols() > 0) N_.middleRows(a.begin, a.length).array().colwise() *= d.segment(a.begin, a.length).array();
+    for (int i = a.begin; i < a.begin + a.length; ++i) {
+      double row[kMaxBasis];
+      for (Eigen::Index k = 0; k < N_.cols(); ++k) row[k] = d[i] * N_(i, k);
+      for (Eigen::Index k = 0; k < N_.cols(); ++k) {
+        if (M.size() == 0) {
+          N_(i, k) = row[k];
+          continue;
+        }
+        double v = 0.0;
+        for (Eigen::Index l = 0; l < N_.cols(); ++l) v += row[l] * M(l, k);
+        N_(i, k) = v;
+      }
+    }
   }
 }
 

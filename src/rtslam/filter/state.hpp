@@ -152,10 +152,11 @@ class State {
   /// Replaces block b's rows of the basis (the blocks moved as a whole: a change of world frame).
   void set_nullspace(BlockId b, const Eigen::Ref<const MatrixXd>& N);
 
-  /// A change of units of the state's tangent coordinates: row i of the covariance (and column i) and of the
-  /// unobservable basis multiplied by d(i), i over the tangent capacity (inactive rows untouched); the caller changes
-  /// the means likewise. P ← D P D, N ← D N with D = diag(d).
-  void scale_tangent(const Eigen::Ref<const VectorXd>& d);
+  /// A change of units of the state's tangent coordinates: row i of the covariance (and column i) multiplied by
+  /// d(i), i over the tangent capacity (inactive rows untouched), and the unobservable basis re-expressed as
+  /// N ← D N M (M: nullspace_dim square, the basis's change of columns; identity when omitted); the caller changes
+  /// the means likewise. P ← D P D with D = diag(d). No allocation.
+  void scale_tangent(const Eigen::Ref<const VectorXd>& d, const Eigen::Ref<const MatrixXd>& M = MatrixXd());
 
   // --- prediction -----------------------------------------------------------------------------------------
   /// After the caller has written the predicted mean of block b: P_bb ← F P_bb Fᵀ + Q, P_bo ← F P_bo for every

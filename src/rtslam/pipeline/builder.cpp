@@ -78,6 +78,12 @@ Registry Registry::builtin() {
         // badly (slam::OdometryScaleOptions): the map's scale is kept at the odometry's unless told otherwise.
         const bool scale_from_odometry = c.options.camera_indices().size() == 1 && !c.options.position_sensor.enabled &&
                                          !c.options.pose_sensor.enabled;
+        if (c.options.odometry_rescale == "on" &&
+            (c.options.position_sensor.enabled || c.options.pose_sensor.enabled)) {
+          throw ConfigError(
+              "odometry/rescale = on cannot be used with an absolute sensor (position_sensor, "
+              "pose_sensor): the sensor gives the map's scale");
+        }
         slam::OdometryScaleOptions scale = c.options.odometry_scale;
         scale.enabled =
             c.options.odometry_rescale == "on" || (c.options.odometry_rescale == "auto" && scale_from_odometry);

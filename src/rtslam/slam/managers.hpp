@@ -4,6 +4,8 @@
 // Implementations live in strategies/; the System only sees these interfaces.
 #include <string>
 
+#include <Eigen/Core>
+
 #include "rtslam/core/time.hpp"
 #include "rtslam/slam/fwd.hpp"
 
@@ -81,6 +83,9 @@ class DataManager {
   /// Processes one raw datum of its sensor: observe, correct, initialize. The robot is already at raw.t.
   virtual void process(Map& map, Sensor& sensor, const RawData& raw, long frame, FrameStats& stats) = 0;
   virtual std::string name() const = 0;
+  /// The map's unit of length changed by c about `centre` (Map::scale_lengths): what the manager keeps in W for the
+  /// landmarks its sensor made (the views of their patches) follows. Nothing by default.
+  virtual void scale_lengths(Map& /*map*/, const Sensor& /*sensor*/, double /*c*/, const Eigen::Vector3d& /*centre*/) {}
 };
 
 }  // namespace rtslam::slam

@@ -6,7 +6,9 @@
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/math/rotation.hpp"
 #include "rtslam/slam/managers.hpp"
+#include "rtslam/slam/sensor.hpp"
 
 namespace rtslam::slam {
 
@@ -86,21 +88,50 @@ void Map::remove_landmark(Landmark& lmk) {
   landmarks_.erase(it);
 }
 
+void Map::reserve_length_scaling() {
+  const Eigen::Index n = state_.covariance().rows();
+  if (length_factors_.size() != n) length_factors_.resize(n);
+  const int k = state_.nullspace_dim();
+  if (basis_change_.rows() != k) basis_change_.resize(k, k);
+}
+
 bool Map::scale_lengths(double c, const Eigen::Vector3d& centre) {
   RTSLAM_CHECK(c > 0.0 && std::isfinite(c), "Map::scale_lengths: the factor must be positive and finite");
-  if (state_.block_count() != static_cast<int>(robots_.size() + landmarks_.size())) return false;
-  for (const auto& r : robots_)
+  std::size_t unit_free = 0;  // the sensors' time offsets (s)
+  for (const auto& r : robots_) {
     if (!r->can_scale_lengths()) return false;
+    for (const auto& s : r->sensors()) {
+      if (s->block() != filter::kNoBlock) return false;  // extrinsics
+      if (s->time_block() != filter::kNoBlock) ++unit_free;
+    }
+  }
+  if (state_.block_count() != static_cast<int>(robots_.size() + landmarks_.size() + unit_free)) return false;
   for (const auto& l : landmarks_)
     if (!l->can_scale_lengths()) return false;
-  length_factors_.setOnes(state_.covariance().rows());
+  const bool basis = state_.nullspace_dim() == Robot::kNullspaceDim;
+  if (state_.nullspace_dim() != 0 && !basis) return false;
+  reserve_length_scaling();
+  length_factors_.setOnes();
+  if (basis) {
+    // D N = [c N_t', N_φ' + N_t' (1 − c) [centre]×] with [N_t' N_φ'] the basis at the new means (positions
+    // p' = centre + c (p − centre), so −[p']× = −c [p]× − (1 − c) [centre]×): N' = D N M with M below.
+    basis_change_.setIdentity();
+    basis_change_.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() / c;
+    basis_change_.topRightCorner<3, 3>() = -((1.0 - c) / c) * math::skew(centre);
+  }
   const auto scale_block = [&](filter::BlockId b, auto& owner) {
     const filter::BlockInfo& info = state_.block(b);
     owner.scale_lengths(c, centre, state_.mean(b), length_factors_.segment(info.tangent_offset, info.tangent_size()));
   };
   for (const auto& r : robots_) scale_block(r->block(), *r);
   for (const auto& l : landmarks_) scale_block(l->block(), *l);
-  state_.scale_tangent(length_factors_);
+  if (basis)
+    state_.scale_tangent(length_factors_, basis_change_);
+  else
+    state_.scale_tangent(length_factors_);
+  for (const auto& r : robots_)
+    for (const auto& s : r->sensors())
+      if (DataManager* dm = s->data_manager()) dm->scale_lengths(*this, *s, c, centre);
   return true;
 }
 

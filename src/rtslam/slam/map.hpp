@@ -48,10 +48,15 @@ class Map {
   /// Changes the map's unit of length about the point `centre` (W): every position of the state (robots, landmarks,
   /// anchors) moves to centre + c (p − centre), c > 0, inverse distances are divided by c, directions, attitudes
   /// and unit-free states keep their values, and the covariance and the unobservable basis are transformed alike
-  /// (P ← D P D, N ← D N). A camera at its robot's origin sees every landmark in the same direction after it. False,
-  /// and nothing changed, when a robot or landmark cannot (Robot::can_scale_lengths) or the state holds other blocks
-  /// (a sensor's states, such as its extrinsics, are metric).
+  /// (P ← D P D; the tracked unobservable basis [t φ] re-expressed at the new means). A camera at its robot's origin
+  /// sees every landmark in the same direction after it (one mounted away from it keeps its metric lever arm: nearly
+  /// so). The sensors' data managers are told (DataManager::scale_lengths: the views of the landmarks' patches).
+  /// False, and nothing changed, when a robot or landmark cannot (Robot::can_scale_lengths), the state holds other
+  /// blocks than theirs and the sensors' time offsets (a sensor's extrinsics are metric), or its basis is not
+  /// [t φ]. No allocation after reserve_length_scaling().
   bool scale_lengths(double c, const Eigen::Vector3d& centre = Eigen::Vector3d::Zero());
+  /// Sizes scale_lengths' workspace (at a run's start, so that a rescale does not allocate).
+  void reserve_length_scaling();
   /// A new sensor (or input stream) id, unique in this map.
   int take_sensor_id() { return next_sensor_id_++; }
 
@@ -63,6 +68,7 @@ class Map {
   int next_landmark_id_ = 0;
   int next_sensor_id_ = 0;
   Eigen::VectorXd length_factors_;  // scale_lengths' workspace (tangent capacity)
+  Eigen::MatrixXd basis_change_;    // and the unobservable basis's change of columns
   friend class Robot;
 };
 

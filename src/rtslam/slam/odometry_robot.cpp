@@ -40,6 +40,8 @@ void OdometryRobot::scale_lengths(double c, const Eigen::Vector3d& centre, Eigen
   sum_ss_ *= c * c;
 }
 
+bool OdometryRobot::keeps_scale() const { return scale_.enabled && (map_ == nullptr || map_->robots().size() == 1); }
+
 void OdometryRobot::restarted() {
   window_open_ = false;  // a new map, whose scale is its own
   start_p_.reset();
@@ -50,7 +52,10 @@ void OdometryRobot::keep_scale() {
   if (!scale_.enabled || map_->robots().size() != 1) return;
   const auto x = map_->state().mean(block_);  // the posterior at time_
   const Eigen::Vector3d p = x.head<3>();
-  if (!start_p_) start_p_ = p;
+  if (!start_p_) {
+    start_p_ = p;
+    map_->reserve_length_scaling();  // at the start: a rescale does not allocate
+  }
   if (window_open_ && odo_length_ >= scale_.window_m) {
     const Eigen::Vector3d ds = p - window_p_;
     const Eigen::Vector3d d_odo = window_R_ * odo_p_;

@@ -65,7 +65,7 @@ class OdometryRobot final : public Robot {
   long increments_applied() const { return steps_; }
   /// Whether it keeps its map's scale at the odometry's (OdometryScaleOptions::enabled, and not given up), the map
   /// rescales made so far and the product of their factors.
-  bool keeps_scale() const { return scale_.enabled; }
+  bool keeps_scale() const;
   int rescales() const { return rescales_; }
   double rescale_product() const { return rescale_product_; }
   bool can_scale_lengths() const override { return true; }

@@ -21,6 +21,24 @@ const PointDescriptor* point_descriptor(const slam::Landmark& lmk) {
   return p ? p->get() : nullptr;
 }
 
+void ActiveSearchDataManager::scale_lengths(slam::Map& map, const slam::Sensor& sensor, double c,
+                                            const Eigen::Vector3d& centre) {
+  for (const auto& l : map.landmarks()) {
+    if (l->sensor_created != sensor.id()) continue;
+    auto* held = std::any_cast<PointDescriptorPtr>(&l->descriptor);
+    if (held == nullptr || *held == nullptr) continue;
+    if (held->use_count() == 1) {
+      // The only holder: changed in place (made non-const by make_shared), no allocation.
+      auto& d = const_cast<PointDescriptor&>(**held);
+      d.T_WS0.p = centre + c * (d.T_WS0.p - centre);
+    } else {
+      auto moved = std::make_shared<PointDescriptor>(**held);
+      moved->T_WS0.p = centre + c * (moved->T_WS0.p - centre);
+      *held = std::move(moved);
+    }
+  }
+}
+
 bool ransac_may_stop(int hypotheses, int best_support, int candidates, double confidence) {
   if (!(confidence > 0.0) || candidates <= 0 || best_support < 2 || hypotheses <= 0) return false;
   const double outlier = 1.0 - std::min(1.0, static_cast<double>(best_support) / candidates);

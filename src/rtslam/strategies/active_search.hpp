@@ -139,6 +139,8 @@ class ActiveSearchDataManager final : public slam::DataManager {
   void process(slam::Map& map, slam::Sensor& sensor, const slam::RawData& raw, long frame,
                slam::FrameStats& stats) override;
   std::string name() const override { return "active-search"; }
+  /// The views of the patches of the landmarks `sensor` made (PointDescriptor::T_WS0) move with the map.
+  void scale_lengths(slam::Map& map, const slam::Sensor& sensor, double c, const Eigen::Vector3d& centre) override;
   const ActiveSearchOptions& options() const { return opt_; }
   /// A scene depth known from elsewhere (the visual-inertial start's features, m): with depth_prior scene, new
   /// landmarks take the prior of this depth until the map's own converged landmarks give one (0: none).

@@ -24,17 +24,20 @@ models::PinholeCamera euroc_cam0() {
   return models::PinholeCamera(in);
 }
 
-const sim::World& room() {
-  static const sim::World world(sim::WorldConfig::preset("room"));
+sim::World& room() {
+  static sim::World world(sim::WorldConfig::preset("room"));
   return world;
 }
 
-// Renders frames along the handheld trajectory; args: supersampling, threads.
+// Renders frames along the handheld trajectory; args: supersampling, threads, vectorized (1: the AVX2 paths when
+// the CPU has them, 0: the plain ones; the same pixels).
 void BM_RenderFrame(benchmark::State& state) {
   const models::PinholeCamera cam = euroc_cam0();
   sim::RenderOptions opt;
   opt.supersampling = static_cast<int>(state.range(0));
   opt.threads = static_cast<int>(state.range(1));
+  room().set_vectorized(state.range(2) != 0);
+  state.SetLabel(room().vectorized() ? "avx2" : "plain");
   const sim::Renderer renderer(room(), cam, opt);
   const auto traj = sim::make_handheld(1, Eigen::Vector3d(0, 0, 1.5), 60.0);
   Eigen::Matrix3d R_RS;  // EuRoC cam0 T_BS rotation (rounded): camera z ≈ body z
@@ -50,7 +53,14 @@ void BM_RenderFrame(benchmark::State& state) {
     t += 50'000'000;
   }
 }
-BENCHMARK(BM_RenderFrame)->Args({2, 2})->Args({2, 1})->Args({1, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_RenderFrame)
+    ->Args({2, 2, 1})
+    ->Args({2, 2, 0})
+    ->Args({2, 1, 1})
+    ->Args({2, 1, 0})
+    ->Args({1, 2, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 void BM_RayTable(benchmark::State& state) {
   const models::PinholeCamera cam = euroc_cam0();

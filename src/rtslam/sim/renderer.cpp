@@ -5,6 +5,10 @@
 #include <limits>
 #include <thread>
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
@@ -96,13 +100,17 @@ Renderer::Renderer(const World& world, const models::PinholeCamera& camera, cons
   constexpr float kInf = std::numeric_limits<float>::infinity();
   tile_rays_.assign(static_cast<std::size_t>(tiles_x_) * static_cast<std::size_t>(tiles_y_),
                     Rect{kInf, -kInf, kInf, -kInf});
+  tile_full_.assign(tile_rays_.size(), 1);
   for (int v = 0; v < height_; ++v)
     for (int u = 0; u < width_; ++u) {
       Rect& r = tile_rays_[static_cast<std::size_t>((v / kTile) * tiles_x_ + u / kTile)];
       const Eigen::Vector2f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
                                                    static_cast<std::size_t>(u)) * static_cast<std::size_t>(n2_);
       for (int k = 0; k < n2_; ++k, ++ray) {
-        if (std::isnan(ray->x())) continue;
+        if (std::isnan(ray->x())) {
+          tile_full_[static_cast<std::size_t>((v / kTile) * tiles_x_ + u / kTile)] = 0;
+          continue;
+        }
         r.x_min = std::min(r.x_min, ray->x());
         r.x_max = std::max(r.x_max, ray->x());
         r.y_min = std::min(r.y_min, ray->y());
@@ -130,9 +138,38 @@ struct Renderer::Frame {
 struct Renderer::Scratch {
   std::vector<float> sums;       // [(v - v_begin) * width + u]: a block's pixel values before noise
   std::vector<int> boxes;        // the obstacles in view of a tile
-  std::vector<Vector3f> o, d;    // a tile's valid sub-sample rays in W
+  std::vector<float> o[3], d[3];  // a tile's valid sub-sample rays in W, by coordinate
   std::vector<float> grey;       // and what they see
 };
+
+#if defined(__x86_64__)
+// d = R (x, y, 1) for rays k < count (count rounded down to a multiple of 8) of the interleaved table xy, written
+// to the scratch columns from row n; returns how many. The same float operations as Eigen's 3x3 product: per
+// coordinate R(i, 0) x + (R(i, 1) y + R(i, 2) · 1) (its unrolled sum of three terms splits as 1 + 2).
+__attribute__((target("avx2"))) int Renderer::rotate_rays_avx2(const float* xy, int count, const Eigen::Matrix3f& R,
+                                                               Scratch& scratch, std::size_t n) {
+  const int done = count / 8 * 8;
+  const __m256 one = _mm256_set1_ps(1.0f);
+  for (int k = 0; k < done; k += 8) {
+    const __m256 a = _mm256_loadu_ps(xy + 2 * k), b = _mm256_loadu_ps(xy + 2 * k + 8);
+    // [x0 y0 x1 y1 | x2 y2 x3 y3], [x4 y4 x5 y5 | x6 y6 x7 y7] -> x0..x7 and y0..y7
+    const __m256 xs = _mm256_castpd_ps(_mm256_permute4x64_pd(
+        _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))), _MM_SHUFFLE(3, 1, 2, 0)));
+    const __m256 ys = _mm256_castpd_ps(_mm256_permute4x64_pd(
+        _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))), _MM_SHUFFLE(3, 1, 2, 0)));
+    for (int i = 0; i < 3; ++i) {
+      const __m256 d = _mm256_add_ps(
+          _mm256_mul_ps(_mm256_set1_ps(R(i, 0)), xs),
+          _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(R(i, 1)), ys), _mm256_mul_ps(_mm256_set1_ps(R(i, 2)), one)));
+      _mm256_storeu_ps(scratch.d[i].data() + n + static_cast<std::size_t>(k), d);
+    }
+  }
+  _mm256_zeroupper();
+  return done;
+}
+#else
+int Renderer::rotate_rays_avx2(const float*, int, const Eigen::Matrix3f&, Scratch&, std::size_t) { return 0; }
+#endif
 
 void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, Scratch& scratch,
                             cv::Mat& out) const {
@@ -141,6 +178,7 @@ void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int ti
   const int m = static_cast<int>(frame.R_WC.size());
   const int v_begin = tile_row * kTile, v_end = std::min(height_, v_begin + kTile);
   const float inv_n2 = 1.0f / static_cast<float>(n2_);
+  const bool vectorized = world_.vectorized();
   for (int tx = 0; tx < tiles_x_; ++tx) {
     const int u_begin = tx * kTile, u_end = std::min(width_, u_begin + kTile);
     const Rect& tile = tile_rays_[static_cast<std::size_t>(tile_row * tiles_x_ + tx)];
@@ -152,21 +190,40 @@ void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int ti
     }
     // The tile's rays are traced in one call (the per-ray work inlined in world.cpp), then summed per pixel.
     std::size_t n = 0;
+    const bool whole = m == 1 && tile_full_[static_cast<std::size_t>(tile_row * tiles_x_ + tx)] != 0;
     for (int v = v_begin; v < v_end; ++v) {
       const Eigen::Vector2f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
                                                    static_cast<std::size_t>(u_begin)) * static_cast<std::size_t>(n2_);
+      if (whole && vectorized) {  // one pose, every ray valid: the row's rays rotated eight at a time
+        const int count = (u_end - u_begin) * n2_;
+        const int done = rotate_rays_avx2(ray->data(), count, frame.R_WC[0], scratch, n);
+        for (int k = done; k < count; ++k) {
+          const Vector3f d = frame.R_WC[0] * Vector3f(ray[k].x(), ray[k].y(), 1.0f);
+          for (int i = 0; i < 3; ++i) scratch.d[i][n + static_cast<std::size_t>(k)] = d[i];
+        }
+        for (int i = 0; i < 3; ++i)
+          std::fill_n(scratch.o[i].begin() + static_cast<std::ptrdiff_t>(n), count, frame.p_WC[0][i]);
+        n += static_cast<std::size_t>(count);
+        continue;
+      }
       for (int u = u_begin; u < u_end; ++u)
         for (int k = 0; k < n2_; ++k, ++ray) {
           if (std::isnan(ray->x())) continue;
           // With blur, sub-sample k of pixel (u, v) is taken at instant (k + u + v) mod n² (decorrelates time
           // from sub-pixel position); without blur there is a single pose.
           const auto p = static_cast<std::size_t>(m == 1 ? 0 : (k + u + v) % m);
-          scratch.o[n] = frame.p_WC[p];
-          scratch.d[n] = frame.R_WC[p] * Vector3f(ray->x(), ray->y(), 1.0f);
+          const Vector3f d = frame.R_WC[p] * Vector3f(ray->x(), ray->y(), 1.0f);
+          for (int i = 0; i < 3; ++i) {
+            scratch.o[i][n] = frame.p_WC[p][i];
+            scratch.d[i][n] = d[i];
+          }
           ++n;
         }
     }
-    world_.trace(std::span(scratch.o.data(), n), std::span(scratch.d.data(), n), boxes, scratch.grey.data());
+    const World::Rays rays{{scratch.o[0].data(), scratch.o[1].data(), scratch.o[2].data()},
+                           {scratch.d[0].data(), scratch.d[1].data(), scratch.d[2].data()},
+                           n};
+    world_.trace(rays, boxes, scratch.grey.data());
     const float* grey = scratch.grey.data();
     for (int v = v_begin; v < v_end; ++v) {
       const Eigen::Vector2f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
@@ -249,8 +306,10 @@ cv::Mat Renderer::render(const std::vector<math::Pose>& T_WC, std::uint64_t nois
     scratch.sums.resize(static_cast<std::size_t>(kTile) * static_cast<std::size_t>(width_));
     scratch.boxes.reserve(obstacles.size());
     const auto tile_rays = static_cast<std::size_t>(kTile * kTile * n2_);
-    scratch.o.resize(tile_rays);
-    scratch.d.resize(tile_rays);
+    for (int i = 0; i < 3; ++i) {
+      scratch.o[i].resize(tile_rays);
+      scratch.d[i].resize(tile_rays);
+    }
     scratch.grey.resize(tile_rays);
     for (int tile_row = k; tile_row < tiles_y_; tile_row += threads)
       render_block(frame, noise_seed, tile_row, scratch, out);

@@ -63,6 +63,7 @@ class Renderer {
   struct Frame;    // per-frame poses and obstacle rectangles
   struct Scratch;  // per-thread buffers
   void render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, Scratch& scratch, cv::Mat& out) const;
+  static int rotate_rays_avx2(const float* xy, int count, const Eigen::Matrix3f& R, Scratch& scratch, std::size_t n);
 
   const World& world_;
   RenderOptions options_;
@@ -73,6 +74,7 @@ class Renderer {
   std::size_t valid_rays_ = 0;
   int tiles_x_ = 0, tiles_y_ = 0;
   std::vector<Rect> tile_rays_;  // [ty * tiles_x + tx]: bounds of the tile's valid rays (empty: x_min > x_max)
+  std::vector<std::uint8_t> tile_full_;  // [ty * tiles_x + tx]: 1 if every ray of the tile is valid
 };
 
 }  // namespace rtslam::sim

@@ -5,6 +5,10 @@
 #include <limits>
 #include <numbers>
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -368,13 +372,124 @@ bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxe
 
 float World::shade(int face, const Vector3f& p) const { return shade_hit(face, p); }
 
-void World::trace(std::span<const Vector3f> o, std::span<const Vector3f> d, std::span<const int> boxes,
-                  float* grey) const {
-  for (std::size_t k = 0; k < d.size(); ++k) {
+float World::trace_ray(const Vector3f& o, const Vector3f& d, std::span<const int> boxes) const {
+  Hit hit;
+  return cast_ray(o, d, boxes, hit) ? shade_hit(hit.face, o + hit.t * d) : 0.0f;
+}
+
+bool World::vectorized() const {
+#if defined(__x86_64__)
+  if (!vectorized_) return false;
+  // __builtin_cpu_supports also checks that the OS saves the AVX registers.
+  static const bool avx2 = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return avx2;
+#else
+  return false;
+#endif
+}
+
+void World::trace(const Rays& rays, std::span<const int> boxes, float* grey) const {
+  std::size_t k = 0;
+  if (markers_.empty() && vectorized()) k = trace_avx2(rays, boxes, grey);
+  for (; k < rays.size; ++k) {
+    const Vector3f o(rays.o[0][k], rays.o[1][k], rays.o[2][k]), d(rays.d[0][k], rays.d[1][k], rays.d[2][k]);
     Hit hit;
-    grey[k] = cast_ray(o[k], d[k], boxes, hit) ? shade_hit(hit.face, o[k] + hit.t * d[k]) : 0.0f;
+    grey[k] = cast_ray(o, d, boxes, hit) ? shade_hit(hit.face, o + hit.t * d) : 0.0f;
   }
 }
+
+#if defined(__x86_64__)
+// Eight rays per step, lane k doing exactly what cast_ray and shade_hit do for one ray: the same float operations
+// in the same order (no FMA: the target is AVX2 alone), the selections as blends, std::min(a, b) as
+// _mm256_min_ps(b, a) (both give a when the comparison fails) and std::clamp(v, lo, hi) as min(hi, max(lo, v)).
+// A packet with a zero direction component goes through the plain path ray by ray (the slab test of parallel rays).
+// The ray casting is vector arithmetic; the texture is sampled lane by lane (shade_hit).
+__attribute__((target("avx2"))) std::size_t World::trace_avx2(const Rays& rays, std::span<const int> boxes,
+                                                              float* grey) const {
+  const std::size_t n = rays.size / 8 * 8;
+  const __m256 zero = _mm256_setzero_ps(), inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  const __m256i one = _mm256_set1_epi32(1);
+  for (std::size_t j = 0; j < n; j += 8) {
+    __m256 ov[3], dv[3], inv[3], neg[3];
+    int any_zero = 0;
+    for (int i = 0; i < 3; ++i) {
+      ov[i] = _mm256_loadu_ps(rays.o[i] + j);
+      dv[i] = _mm256_loadu_ps(rays.d[i] + j);
+      any_zero |= _mm256_movemask_ps(_mm256_cmp_ps(dv[i], zero, _CMP_EQ_OQ));
+      inv[i] = _mm256_div_ps(_mm256_set1_ps(1.0f), dv[i]);
+      neg[i] = _mm256_cmp_ps(dv[i], zero, _CMP_LT_OQ);
+    }
+    if (any_zero != 0) {
+      for (std::size_t k = j; k < j + 8; ++k)
+        grey[k] = trace_ray(Vector3f(rays.o[0][k], rays.o[1][k], rays.o[2][k]),
+                            Vector3f(rays.d[0][k], rays.d[1][k], rays.d[2][k]), boxes);
+      continue;
+    }
+    // Room: exit distance through the slab of each axis.
+    __m256 best = inf;
+    __m256i face = _mm256_set1_epi32(-1);
+    for (int i = 0; i < 3; ++i) {
+      const __m256 pos = _mm256_cmp_ps(dv[i], zero, _CMP_GT_OQ);
+      const __m256 plane = _mm256_blendv_ps(_mm256_set1_ps(room_min_[i]), _mm256_set1_ps(room_max_[i]), pos);
+      const __m256 t = _mm256_mul_ps(_mm256_sub_ps(plane, ov[i]), inv[i]);
+      const __m256 closer = _mm256_cmp_ps(t, best, _CMP_LT_OQ);
+      best = _mm256_blendv_ps(best, t, closer);
+      const __m256i f = _mm256_add_epi32(_mm256_set1_epi32(2 * i), _mm256_and_si256(_mm256_castps_si256(pos), one));
+      face = _mm256_blendv_epi8(face, f, _mm256_castps_si256(closer));
+    }
+    const __m256 valid = _mm256_and_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(face, _mm256_set1_epi32(-1))),
+                                       _mm256_cmp_ps(best, zero, _CMP_GT_OQ));
+    if (_mm256_movemask_ps(valid) == 0) {
+      _mm256_storeu_ps(grey + j, zero);
+      continue;
+    }
+    // Boxes: the slab test, entry face on the axis of the largest near distance.
+    for (const int k : boxes) {
+      const Aabb& b = boxes_[static_cast<std::size_t>(k)];
+      __m256 t_near = _mm256_mul_ps(
+          _mm256_sub_ps(_mm256_blendv_ps(_mm256_set1_ps(b.lo.x()), _mm256_set1_ps(b.hi.x()), neg[0]), ov[0]), inv[0]);
+      __m256 t_far = _mm256_mul_ps(
+          _mm256_sub_ps(_mm256_blendv_ps(_mm256_set1_ps(b.hi.x()), _mm256_set1_ps(b.lo.x()), neg[0]), ov[0]), inv[0]);
+      __m256i axis = _mm256_setzero_si256();
+      __m256 neg_axis = neg[0];
+      for (int i = 1; i < 3; ++i) {
+        const __m256 lo = _mm256_set1_ps(b.lo[i]), hi = _mm256_set1_ps(b.hi[i]);
+        const __m256 t0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_blendv_ps(lo, hi, neg[i]), ov[i]), inv[i]);
+        const __m256 t1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_blendv_ps(hi, lo, neg[i]), ov[i]), inv[i]);
+        const __m256 later = _mm256_cmp_ps(t0, t_near, _CMP_GT_OQ);
+        axis = _mm256_blendv_epi8(axis, _mm256_set1_epi32(i), _mm256_castps_si256(later));
+        neg_axis = _mm256_blendv_ps(neg_axis, neg[i], later);
+        t_near = _mm256_blendv_ps(t_near, t0, later);
+        t_far = _mm256_min_ps(t1, t_far);
+      }
+      const __m256 hit = _mm256_and_ps(
+          _mm256_and_ps(_mm256_cmp_ps(t_near, t_far, _CMP_LE_OQ), _mm256_cmp_ps(t_near, zero, _CMP_GT_OQ)),
+          _mm256_cmp_ps(t_near, best, _CMP_LT_OQ));
+      if (_mm256_movemask_ps(hit) == 0) continue;
+      best = _mm256_blendv_ps(best, t_near, hit);
+      const __m256i f =
+          _mm256_add_epi32(_mm256_add_epi32(_mm256_set1_epi32(b.first_face), _mm256_add_epi32(axis, axis)),
+                           _mm256_and_si256(_mm256_castps_si256(neg_axis), one));
+      face = _mm256_blendv_epi8(face, f, _mm256_castps_si256(hit));
+    }
+    // Shading, lane by lane (gathers are slow on CPUs with the gather-data-sampling fix): the hit point o + t d.
+    alignas(32) int faces[8], lit[8];
+    alignas(32) float p[3][8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(faces), face);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(lit), _mm256_castps_si256(valid));
+    for (int i = 0; i < 3; ++i) _mm256_store_ps(p[i], _mm256_add_ps(ov[i], _mm256_mul_ps(best, dv[i])));
+    for (int l = 0; l < 8; ++l)
+      grey[j + l] = lit[l] != 0 ? shade_hit(faces[l], Vector3f(p[0][l], p[1][l], p[2][l])) : 0.0f;
+  }
+  _mm256_zeroupper();
+  return n;
+}
+#else
+std::size_t World::trace_avx2(const Rays&, std::span<const int>, float*) const { return 0; }
+#endif
 
 namespace {
 

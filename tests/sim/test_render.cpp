@@ -274,7 +274,9 @@ TEST(Renderer, CullingGivesThePictureOfCastingAgainstEveryObstacle) {
 TEST(World, TracesTheSameGreyLevelsEightRaysAtATimeAsOneAtATime) {
   // World::trace's AVX2 path (eight rays per step) against its plain path: the same float, bit for bit, for rays
   // from many origins in a room with pillars and boxes, some with zero direction components (the plain slab test
-  // of parallel rays), and a ray count that is not a multiple of eight.
+  // of parallel rays), some from origins on the planes of the boxes' faces (a distance of exactly 0: near ties of
+  // the slab test) and with tiny or subnormal direction components (1/d infinite, 0 · ∞ = NaN: the comparisons'
+  // NaN semantics), and a ray count that is not a multiple of eight.
   WorldConfig c = WorldConfig::preset("hall");
   c.texel_size = 0.02;
   World world(c);
@@ -283,21 +285,30 @@ TEST(World, TracesTheSameGreyLevelsEightRaysAtATimeAsOneAtATime) {
   std::vector<Vector3f> o, d;
   std::vector<int> all(world.boxes().size());
   for (std::size_t k = 0; k < all.size(); ++k) all[k] = static_cast<int>(k);
-  while (o.size() < 20003) {
-    const Vector3d p(randu(rng, world.room_min().x(), world.room_max().x()),
-                     randu(rng, world.room_min().y(), world.room_max().y()),
-                     randu(rng, world.room_min().z(), world.room_max().z()));
+  const Vector3d lo = world.room_min(), hi = world.room_max();
+  while (o.size() < 40003) {
+    Vector3d p;
+    for (int i = 0; i < 3; ++i) p[i] = randu(rng, lo[i], hi[i]);
     if (!world.is_free(p, 0.01)) continue;
     for (int k = 0; k < 64; ++k) {
-      Vector3f dir(static_cast<float>(randn(rng)), static_cast<float>(randn(rng)), static_cast<float>(randn(rng)));
+      Vector3f dir;
+      for (int i = 0; i < 3; ++i) dir[i] = static_cast<float>(randn(rng));
+      Vector3f origin = p.cast<float>();
       if (k % 16 == 3) dir[k % 3] = 0.0f;  // parallel to a face
       if (k % 32 == 5) dir[(k + 1) % 3] = -0.0f;
-      o.push_back(p.cast<float>());
+      if (k % 8 == 6) dir[k % 3] = k % 16 == 6 ? 1e-40f : -1e-30f;  // subnormal, tiny
+      if (k % 4 == 1) {  // on the plane of a face of some box, some going along it (0 · ∞ on that axis)
+        const Aabb& b = world.boxes()[static_cast<std::size_t>(k / 4) % world.boxes().size()];
+        origin[k % 3] = k % 8 == 1 ? b.lo[k % 3] : b.hi[k % 3];
+        if (k % 16 == 1 || k % 16 == 5) dir[k % 3] = -1e-40f;  // lo plane: NaN far distance; hi: near
+        if (k % 16 == 9 || k % 16 == 13) dir[k % 3] = 1e-40f;  // lo plane: NaN near distance; hi: far
+      }
+      o.push_back(origin);
       d.push_back(dir);
     }
   }
-  o.resize(20003);
-  d.resize(20003);
+  o.resize(40003);
+  d.resize(40003);
   std::vector<float> columns[6];
   for (std::size_t k = 0; k < o.size(); ++k)
     for (int i = 0; i < 3; ++i) {
@@ -312,13 +323,16 @@ TEST(World, TracesTheSameGreyLevelsEightRaysAtATimeAsOneAtATime) {
   world.trace(rays, all, plain.data());
   world.set_vectorized(true);
   world.trace(rays, all, packed.data());
-  int differ = 0, lit = 0;
+  int differ = 0, lit = 0, on_obstacles = 0;
   for (std::size_t k = 0; k < o.size(); ++k) {
     differ += std::memcmp(&plain[k], &packed[k], sizeof(float)) == 0 ? 0 : 1;
     lit += plain[k] > 0.0f ? 1 : 0;
+    Hit hit;
+    on_obstacles += world.cast(o[k], d[k], hit) && hit.face >= 6 ? 1 : 0;  // faces 0-5: the room
   }
   EXPECT_EQ(differ, 0);
-  EXPECT_GT(lit, 19000);
+  EXPECT_GT(lit, 38000);
+  EXPECT_GT(on_obstacles, 2000);  // the slab test of the boxes is exercised, not only the room's
   // Outside the room nothing is hit: 0 on both paths.
   const std::vector<float> far(16, 1e3f), dx(16, 1.0f), dy(16, 0.5f), dz(16, 0.25f);
   std::vector<float> grey(16, 1.0f);

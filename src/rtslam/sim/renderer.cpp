@@ -164,7 +164,6 @@ __attribute__((target("avx2"))) int Renderer::rotate_rays_avx2(const float* xy, 
       _mm256_storeu_ps(scratch.d[i].data() + n + static_cast<std::size_t>(k), d);
     }
   }
-  _mm256_zeroupper();
   return done;
 }
 #else
@@ -196,7 +195,9 @@ void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int ti
                                                    static_cast<std::size_t>(u_begin)) * static_cast<std::size_t>(n2_);
       if (whole && vectorized) {  // one pose, every ray valid: the row's rays rotated eight at a time
         const int count = (u_end - u_begin) * n2_;
-        const int done = rotate_rays_avx2(ray->data(), count, frame.R_WC[0], scratch, n);
+        // The table's Vector2f are packed pairs of floats: the row's rays are 2 count consecutive floats.
+        static_assert(sizeof(Eigen::Vector2f) == 2 * sizeof(float));
+        const int done = rotate_rays_avx2(reinterpret_cast<const float*>(ray), count, frame.R_WC[0], scratch, n);
         for (int k = done; k < count; ++k) {
           const Vector3f d = frame.R_WC[0] * Vector3f(ray[k].x(), ray[k].y(), 1.0f);
           for (int i = 0; i < 3; ++i) scratch.d[i][n + static_cast<std::size_t>(k)] = d[i];

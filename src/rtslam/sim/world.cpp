@@ -178,8 +178,9 @@ int WorldConfig::fit_to_points(const std::vector<Vector3d>& points, double margi
 }
 
 float FaceTexture::sample(float s, float t) const {
-  s = std::clamp(s, 0.0f, static_cast<float>(width - 1));
-  t = std::clamp(t, 0.0f, static_cast<float>(height - 1));
+  // Clamped so that NaN gives 0 (std::clamp would pass it on, and the texel index with it); otherwise as clamp.
+  s = std::min(std::max(0.0f, s), static_cast<float>(width - 1));
+  t = std::min(std::max(0.0f, t), static_cast<float>(height - 1));
   const int x0 = std::min(static_cast<int>(s), width - 2 < 0 ? 0 : width - 2);
   const int y0 = std::min(static_cast<int>(t), height - 2 < 0 ? 0 : height - 2);
   const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
@@ -353,8 +354,8 @@ void World::cast_boxes_parallel(const Vector3f& o, const Vector3f& d, std::span<
   // p's coordinates on the texture axes by constant index: p[f.b] sent p through memory.
   const float pb = f.b == 0 ? p.x() : f.b == 1 ? p.y() : p.z();
   const float pc = f.c == 0 ? p.x() : f.c == 1 ? p.y() : p.z();
-  const float s = std::clamp((pb - f.lo_b) * inv_texel_, 0.0f, f.s_max);
-  const float t = std::clamp((pc - f.lo_c) * inv_texel_, 0.0f, f.t_max);
+  const float s = std::min(std::max(0.0f, (pb - f.lo_b) * inv_texel_), f.s_max);  // NaN -> 0, as sample()
+  const float t = std::min(std::max(0.0f, (pc - f.lo_c) * inv_texel_), f.t_max);
   const int x0 = std::min(static_cast<int>(s), f.x0_max), y0 = std::min(static_cast<int>(t), f.y0_max);
   const float fx = s - static_cast<float>(x0), fy = t - static_cast<float>(y0);
   const std::uint8_t* r0 = f.texels + static_cast<std::size_t>(y0) * f.width + static_cast<std::size_t>(x0);
@@ -402,11 +403,12 @@ void World::trace(const Rays& rays, std::span<const int> boxes, float* grey) con
 }
 
 #if defined(__x86_64__)
-// Eight rays per step, lane k doing exactly what cast_ray and shade_hit do for one ray: the same float operations
-// in the same order (no FMA: the target is AVX2 alone), the selections as blends, std::min(a, b) as
-// _mm256_min_ps(b, a) (both give a when the comparison fails) and std::clamp(v, lo, hi) as min(hi, max(lo, v)).
-// A packet with a zero direction component goes through the plain path ray by ray (the slab test of parallel rays).
-// The ray casting is vector arithmetic; the texture is sampled lane by lane (shade_hit).
+// Eight rays per step, lane k doing exactly what cast_ray does for one ray: the same float operations in the same
+// order (no FMA: the target is AVX2 alone, and the module is compiled with -ffp-contract=off, so that neither path
+// fuses a multiply and an add whatever -march a build adds), the selections as blends, the comparisons as ordered
+// predicates (false with NaN, as in C++), std::min(a, b) as _mm256_min_ps(b, a) (both give a when the comparison
+// fails). A packet with a zero direction component goes through the plain path ray by ray (the slab test of
+// parallel rays). The texture is then sampled lane by lane (shade_hit), at the hit point o + t d computed in vector.
 __attribute__((target("avx2"))) std::size_t World::trace_avx2(const Rays& rays, std::span<const int> boxes,
                                                               float* grey) const {
   const std::size_t n = rays.size / 8 * 8;
@@ -484,7 +486,6 @@ __attribute__((target("avx2"))) std::size_t World::trace_avx2(const Rays& rays, 
     for (int l = 0; l < 8; ++l)
       grey[j + l] = lit[l] != 0 ? shade_hit(faces[l], Vector3f(p[0][l], p[1][l], p[2][l])) : 0.0f;
   }
-  _mm256_zeroupper();
   return n;
 }
 #else

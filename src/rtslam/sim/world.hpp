@@ -143,7 +143,8 @@ class World {
   /// grey levels, bit for bit, as one at a time); rays with a zero direction component, worlds with markers and
   /// other CPUs take the plain path.
   void trace(const Rays& rays, std::span<const int> boxes, float* grey) const;
-  /// Lets trace() use its AVX2 path when the CPU has it (default), or not (tests compare the two).
+  /// Lets trace() use its AVX2 path when the CPU has it (default), or not (tests compare the two). Not while a
+  /// renderer of this world is rendering.
   void set_vectorized(bool enabled) { vectorized_ = enabled; }
   /// Whether trace() takes its AVX2 path for a world without markers.
   bool vectorized() const;

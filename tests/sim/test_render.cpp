@@ -276,7 +276,7 @@ TEST(World, TracesTheSameGreyLevelsEightRaysAtATimeAsOneAtATime) {
   // from many origins in a room with pillars and boxes, some with zero direction components (the plain slab test
   // of parallel rays), some from origins on the planes of the boxes' faces (a distance of exactly 0: near ties of
   // the slab test) and with tiny or subnormal direction components (1/d infinite, 0 · ∞ = NaN: the comparisons'
-  // NaN semantics), and a ray count that is not a multiple of eight.
+  // NaN semantics), narrow bundles whose packets see one face, and a ray count that is not a multiple of eight.
   WorldConfig c = WorldConfig::preset("hall");
   c.texel_size = 0.02;
   World world(c);
@@ -304,6 +304,15 @@ TEST(World, TracesTheSameGreyLevelsEightRaysAtATimeAsOneAtATime) {
         if (k % 16 == 9 || k % 16 == 13) dir[k % 3] = 1e-40f;  // lo plane: NaN near distance; hi: far
       }
       o.push_back(origin);
+      d.push_back(dir);
+    }
+    // A narrow bundle, like a tile's rays: eight consecutive rays mostly on one face (the vector shading).
+    Vector3f axis;
+    for (int i = 0; i < 3; ++i) axis[i] = static_cast<float>(randn(rng));
+    for (int k = 0; k < 64; ++k) {
+      Vector3f dir = axis;
+      for (int i = 0; i < 3; ++i) dir[i] += static_cast<float>(0.002 * randn(rng));
+      o.push_back(p.cast<float>());
       d.push_back(dir);
     }
   }

@@ -477,14 +477,56 @@ __attribute__((target("avx2"))) std::size_t World::trace_avx2(const Rays& rays, 
                            _mm256_and_si256(_mm256_castps_si256(neg_axis), one));
       face = _mm256_blendv_epi8(face, f, _mm256_castps_si256(hit));
     }
-    // Shading, lane by lane (gathers are slow on CPUs with the gather-data-sampling fix): the hit point o + t d.
+    // Shading at the hit point o + t d.
+    __m256 p[3];
+    for (int i = 0; i < 3; ++i) p[i] = _mm256_add_ps(ov[i], _mm256_mul_ps(best, dv[i]));
+    const int face0 = _mm256_cvtsi256_si32(face);
+    if (_mm256_movemask_ps(valid) == 0xFF &&
+        _mm256_movemask_epi8(_mm256_cmpeq_epi32(face, _mm256_set1_epi32(face0))) == -1) {
+      // The eight rays on one face (most packets): shade_hit's arithmetic in vector, the face's constants broadcast;
+      // std::max(0, v) as _mm256_max_ps(v, 0) and std::min(v, m) as _mm256_min_ps(m, v) (the same operand when
+      // the comparison fails, NaN included). Only the texels are read lane by lane (no gathers).
+      const FaceSampler& f = samplers_[static_cast<std::size_t>(face0)];
+      const __m256 inv_texel = _mm256_set1_ps(inv_texel_);
+      const __m256 s =
+          _mm256_min_ps(_mm256_set1_ps(f.s_max),
+                        _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(p[f.b], _mm256_set1_ps(f.lo_b)), inv_texel), zero));
+      const __m256 t =
+          _mm256_min_ps(_mm256_set1_ps(f.t_max),
+                        _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(p[f.c], _mm256_set1_ps(f.lo_c)), inv_texel), zero));
+      const __m256i x0 = _mm256_min_epi32(_mm256_cvttps_epi32(s), _mm256_set1_epi32(f.x0_max));
+      const __m256i y0 = _mm256_min_epi32(_mm256_cvttps_epi32(t), _mm256_set1_epi32(f.y0_max));
+      const __m256 fx = _mm256_sub_ps(s, _mm256_cvtepi32_ps(x0));
+      const __m256 fy = _mm256_sub_ps(t, _mm256_cvtepi32_ps(y0));
+      alignas(32) int offset[8], v00[8], v01[8], v10[8], v11[8];
+      _mm256_store_si256(reinterpret_cast<__m256i*>(offset),
+                         _mm256_add_epi32(_mm256_mullo_epi32(y0, _mm256_set1_epi32(static_cast<int>(f.width))), x0));
+      for (int l = 0; l < 8; ++l) {
+        const std::uint8_t* r0 = f.texels + offset[l];
+        const std::uint8_t* r1 = r0 + f.width;
+        v00[l] = r0[0];
+        v01[l] = r0[1];
+        v10[l] = r1[0];
+        v11[l] = r1[1];
+      }
+      const __m256 a00 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v00)));
+      const __m256 a01 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v01)));
+      const __m256 a10 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v10)));
+      const __m256 a11 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v11)));
+      const __m256 top = _mm256_add_ps(a00, _mm256_mul_ps(fx, _mm256_sub_ps(a01, a00)));
+      const __m256 bot = _mm256_add_ps(a10, _mm256_mul_ps(fx, _mm256_sub_ps(a11, a10)));
+      _mm256_storeu_ps(grey + j, _mm256_add_ps(top, _mm256_mul_ps(fy, _mm256_sub_ps(bot, top))));
+      continue;
+    }
+    // Rays on several faces, or some seeing nothing: lane by lane (gathers are slow on CPUs with the
+    // gather-data-sampling fix).
     alignas(32) int faces[8], lit[8];
-    alignas(32) float p[3][8];
+    alignas(32) float q[3][8];
     _mm256_store_si256(reinterpret_cast<__m256i*>(faces), face);
     _mm256_store_si256(reinterpret_cast<__m256i*>(lit), _mm256_castps_si256(valid));
-    for (int i = 0; i < 3; ++i) _mm256_store_ps(p[i], _mm256_add_ps(ov[i], _mm256_mul_ps(best, dv[i])));
+    for (int i = 0; i < 3; ++i) _mm256_store_ps(q[i], p[i]);
     for (int l = 0; l < 8; ++l)
-      grey[j + l] = lit[l] != 0 ? shade_hit(faces[l], Vector3f(p[0][l], p[1][l], p[2][l])) : 0.0f;
+      grey[j + l] = lit[l] != 0 ? shade_hit(faces[l], Vector3f(q[0][l], q[1][l], q[2][l])) : 0.0f;
   }
   return n;
 }

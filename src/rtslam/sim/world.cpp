@@ -498,11 +498,12 @@ __attribute__((target("avx2"))) std::size_t World::trace_avx2(const Rays& rays, 
       const __m256i y0 = _mm256_min_epi32(_mm256_cvttps_epi32(t), _mm256_set1_epi32(f.y0_max));
       const __m256 fx = _mm256_sub_ps(s, _mm256_cvtepi32_ps(x0));
       const __m256 fy = _mm256_sub_ps(t, _mm256_cvtepi32_ps(y0));
-      alignas(32) int offset[8], v00[8], v01[8], v10[8], v11[8];
-      _mm256_store_si256(reinterpret_cast<__m256i*>(offset),
-                         _mm256_add_epi32(_mm256_mullo_epi32(y0, _mm256_set1_epi32(static_cast<int>(f.width))), x0));
+      alignas(32) int xs[8], ys[8], v00[8], v01[8], v10[8], v11[8];
+      _mm256_store_si256(reinterpret_cast<__m256i*>(xs), x0);
+      _mm256_store_si256(reinterpret_cast<__m256i*>(ys), y0);
       for (int l = 0; l < 8; ++l) {
-        const std::uint8_t* r0 = f.texels + offset[l];
+        const std::uint8_t* r0 =
+            f.texels + static_cast<std::size_t>(ys[l]) * f.width + static_cast<std::size_t>(xs[l]);  // as shade_hit
         const std::uint8_t* r1 = r0 + f.width;
         v00[l] = r0[0];
         v01[l] = r0[1];

@@ -373,7 +373,8 @@ bool World::cast(const Vector3f& o, const Vector3f& d, std::span<const int> boxe
 
 float World::shade(int face, const Vector3f& p) const { return shade_hit(face, p); }
 
-float World::trace_ray(const Vector3f& o, const Vector3f& d, std::span<const int> boxes) const {
+[[gnu::always_inline]] inline float World::trace_ray(const Vector3f& o, const Vector3f& d,
+                                                     std::span<const int> boxes) const {
   Hit hit;
   return cast_ray(o, d, boxes, hit) ? shade_hit(hit.face, o + hit.t * d) : 0.0f;
 }
@@ -395,11 +396,9 @@ bool World::vectorized() const {
 void World::trace(const Rays& rays, std::span<const int> boxes, float* grey) const {
   std::size_t k = 0;
   if (markers_.empty() && vectorized()) k = trace_avx2(rays, boxes, grey);
-  for (; k < rays.size; ++k) {
-    const Vector3f o(rays.o[0][k], rays.o[1][k], rays.o[2][k]), d(rays.d[0][k], rays.d[1][k], rays.d[2][k]);
-    Hit hit;
-    grey[k] = cast_ray(o, d, boxes, hit) ? shade_hit(hit.face, o + hit.t * d) : 0.0f;
-  }
+  for (; k < rays.size; ++k)
+    grey[k] = trace_ray(Vector3f(rays.o[0][k], rays.o[1][k], rays.o[2][k]),
+                        Vector3f(rays.d[0][k], rays.d[1][k], rays.d[2][k]), boxes);
 }
 
 #if defined(__x86_64__)
@@ -408,7 +407,7 @@ void World::trace(const Rays& rays, std::span<const int> boxes, float* grey) con
 // fuses a multiply and an add whatever -march a build adds), the selections as blends, the comparisons as ordered
 // predicates (false with NaN, as in C++), std::min(a, b) as _mm256_min_ps(b, a) (both give a when the comparison
 // fails). A packet with a zero direction component goes through the plain path ray by ray (the slab test of
-// parallel rays). The texture is then sampled lane by lane (shade_hit), at the hit point o + t d computed in vector.
+// parallel rays). Shading: a packet whose eight rays hit one face in vector, others lane by lane (shade_hit).
 __attribute__((target("avx2"))) std::size_t World::trace_avx2(const Rays& rays, std::span<const int> boxes,
                                                               float* grey) const {
   const std::size_t n = rays.size / 8 * 8;

@@ -165,6 +165,7 @@ class World {
   float shade_hit(int face, const Eigen::Vector3f& p) const;
   void cast_boxes_parallel(const Eigen::Vector3f& o, const Eigen::Vector3f& d, std::span<const int> boxes,
                            float& best, int& face) const;
+  // One ray of trace(): cast_ray, then shade_hit at the hit (forced inline too).
   float trace_ray(const Eigen::Vector3f& o, const Eigen::Vector3f& d, std::span<const int> boxes) const;
   // The AVX2 path of trace() over the first multiple of 8 rays; returns how many it traced.
   std::size_t trace_avx2(const Rays& rays, std::span<const int> boxes, float* grey) const;

@@ -453,12 +453,14 @@ void run_dataset(const RunOptions& ro) {
   std::string calibration_skipped;
   const auto calibration = calibration_prepass(ro.dataset, dopt, o, simulated, calibration_skipped);
   // Real time: the stream is released at the sensor clock by an acquisition thread; late images are dropped. A live
-  // camera is always read so (its clock is the wall clock: speed 1).
+  // camera is always read so (its clock is the wall clock: speed 1, released as it arrives). A replay's clock starts
+  // at the filter's first request, so the set-up below drops nothing.
   const bool live = ds.kind == "camera";
   const std::optional<double> realtime_speed = live ? std::optional<double>(1.0) : ro.realtime;
   const io::RealtimeSource* realtime = nullptr;
   if (realtime_speed) {
-    auto rt = std::make_unique<io::RealtimeSource>(std::move(ds.source), *realtime_speed);
+    auto rt = std::make_unique<io::RealtimeSource>(std::move(ds.source), *realtime_speed,
+                                                   io::RealtimeSource::kDefaultMaxQueue, live);
     realtime = rt.get();
     ds.source = std::move(rt);
   }

@@ -531,7 +531,8 @@ TEST(Cli, OversizedConfigValuesAreOneLineErrorsNamingFileAndKey) {
 }
 
 // --realtime: the stream replayed at the sensor clock. At 1x a short sequence keeps up (no image dropped); at 10x
-// the run keeps pace with the clock, and every image is either processed or counted as dropped.
+// the run keeps pace with the clock, and every image is either processed or counted as dropped. The images come at
+// 10 Hz: under the sanitizers on a loaded CI machine a frame takes 15 ms (median) to 40 ms, and the bound is loose.
 TEST(Cli, RunRealtimeReportsProcessedAndDroppedImages) {
   const fs::path d = temp_dir("realtime");
   fs::create_directories(d / "frames");
@@ -539,9 +540,9 @@ TEST(Cli, RunRealtimeReportsProcessedAndDroppedImages) {
   cv::RNG rng(7);
   std::ofstream times(d / "times.txt");
   rng.fill(img, cv::RNG::UNIFORM, 0, 255);  // one textured view, seen 40 times by a camera at rest: it tracks
-  for (int i = 0; i < 40; ++i) {
+  for (int i = 0; i < 30; ++i) {
     cv::imwrite((d / "frames" / fmt::format("{}.png", i)).string(), img);
-    times << fmt::format("{:.2f} {}.png\n", 0.05 * i, i);
+    times << fmt::format("{:.2f} {}.png\n", 0.1 * i, i);
   }
   times.close();
   std::ofstream(d / "cam.json") << R"({"model": "pinhole", "width": 160, "height": 120, "focal_length_x": 120,
@@ -554,19 +555,19 @@ TEST(Cli, RunRealtimeReportsProcessedAndDroppedImages) {
   const double one_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_EQ(one.code, 0) << one.out;
   const std::string s1 = read_file(d / "o1" / "summary.json");
-  EXPECT_NE(s1.find("\"images_released\": 40"), std::string::npos) << s1;
+  EXPECT_NE(s1.find("\"images_released\": 30"), std::string::npos) << s1;
   EXPECT_NE(s1.find("\"images_dropped\": 0"), std::string::npos) << s1;
-  EXPECT_GE(one_s, 1.9);  // paced by the clock: the 1.95 s of images take about that long
+  EXPECT_GE(one_s, 2.85);  // paced by the clock: the 2.9 s of images take about that long
   const Result ten = run(common + " --realtime 10 --out " + (d / "o10").string());
   ASSERT_EQ(ten.code, 0) << ten.out;
   const std::string s10 = read_file(d / "o10" / "summary.json");
   EXPECT_NE(s10.find("\"speed\": 10"), std::string::npos) << s10;
-  EXPECT_NE(s10.find("\"images_released\": 40"), std::string::npos) << s10;
+  EXPECT_NE(s10.find("\"images_released\": 30"), std::string::npos) << s10;
   const auto number = [&](const std::string& key) {
     const auto at = s10.find("\"" + key + "\": ");
     return at == std::string::npos ? -1 : std::stoi(s10.substr(at + key.size() + 4));
   };
-  EXPECT_EQ(number("images_processed") + number("images_dropped"), 40) << s10;
+  EXPECT_EQ(number("images_processed") + number("images_dropped"), 30) << s10;
   EXPECT_EQ(frames_of(d / "o10"), number("images_processed"));
   const Result bad = run(common + " --realtime fast --out " + (d / "o2").string());
   EXPECT_NE(bad.code, 0);

@@ -12,13 +12,15 @@ namespace rtslam::io {
 
 using Clock = std::chrono::steady_clock;
 
-RealtimeSource::RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue)
-    : inner_(std::move(inner)), speed_(speed), max_queue_(max_queue) {
+RealtimeSource::RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue, bool live)
+    : inner_(std::move(inner)), speed_(speed), max_queue_(max_queue), live_(live) {
   RTSLAM_CHECK(inner_ != nullptr, "RealtimeSource: null source");
   if (!(speed > 0.0 && speed <= 1000.0)) {
     throw ConfigError(fmt::format("realtime speed = {} must be in (0, 1000] (sensor seconds per wall second)", speed));
   }
   if (max_queue_ < 16) throw ConfigError("RealtimeSource: max_queue must be >= 16");
+  if (live_ && speed_ != 1.0)
+    throw ConfigError(fmt::format("realtime speed = {}: a live source runs at speed 1", speed));
   count_ = inner_->image_count();
   inner_stats_ = inner_->stats();
   thread_ = std::thread([this] { acquire(); });
@@ -41,13 +43,16 @@ void RealtimeSource::acquire() {
       std::optional<Measurement> m = inner_->next();
       if (!m) break;
       const TimeNs t = time_of(*m);
-      if (!t0) {
+      std::unique_lock<std::mutex> lock(mutex_);
+      if (!t0 && !live_) {  // a replay's clock starts when the consumer is ready (the first measurement is read)
+        changed_.wait(lock, [&] { return stop_ || consumer_started_; });
+        if (stop_) return;
         t0 = t;
         wall0 = Clock::now();
       }
-      const auto due = wall0 + std::chrono::duration_cast<Clock::duration>(
-                                   std::chrono::duration<double>(to_seconds(t - *t0) / speed_));
-      std::unique_lock<std::mutex> lock(mutex_);
+      const auto due = live_ ? Clock::now()
+                             : wall0 + std::chrono::duration_cast<Clock::duration>(
+                                           std::chrono::duration<double>(to_seconds(t - *t0) / speed_));
       // Wait for the release time (or a stop); a full queue (the consumer far behind on IMU samples) waits too.
       changed_.wait_until(lock, due, [&] { return stop_; });
       changed_.wait(lock, [&] { return stop_ || queue_.size() < max_queue_; });
@@ -80,6 +85,10 @@ void RealtimeSource::acquire() {
 
 std::optional<Measurement> RealtimeSource::next() {
   std::unique_lock<std::mutex> lock(mutex_);
+  if (!consumer_started_) {
+    consumer_started_ = true;
+    changed_.notify_all();
+  }
   while (true) {
     changed_.wait(lock, [&] { return !queue_.empty() || ended_; });
     if (queue_.empty()) {

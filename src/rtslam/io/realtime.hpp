@@ -5,6 +5,13 @@
 // newest is kept — the older ones are dropped and counted (the paper's "the filter processes the most recent data").
 // The acquisition thread also reads and decodes ahead, so decoding overlaps the filter on a second core.
 //
+// The replay's clock starts when the consumer first asks for a measurement (the first one is read and decoded ahead
+// meanwhile): the time the caller spends setting up after constructing the source (the filter, outputs, viewer) is
+// not counted against the stream, and no image is dropped for it. A live source (`live`: a camera, whose frames
+// arrive at its own clock) is not paced again: its measurements are released as they arrive, from construction on —
+// frames the camera delivers while the filter is still setting up are superseded and counted as dropped, as they
+// would be on a robot.
+//
 // Lag: when the consumer takes an image, how long after its release time it is (the filter's delay behind the
 // clock); a run that keeps up has a lag of about one frame's processing time, one that falls behind drops images
 // instead of letting the lag grow. Both figures are in RealtimeStats.
@@ -35,8 +42,11 @@ struct RealtimeStats {
 
 class RealtimeSource final : public Source {
  public:
-  /// speed: sensor seconds per wall second (1: real time); max_queue bounds what waits (IMU samples and images).
-  RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue = 8192);
+  static constexpr std::size_t kDefaultMaxQueue = 8192;
+  /// speed: sensor seconds per wall second (1: real time); max_queue bounds what waits (IMU samples and images);
+  /// live: the inner source delivers at its own clock (a camera; speed must be 1), released as it arrives.
+  RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue = kDefaultMaxQueue,
+                 bool live = false);
   ~RealtimeSource() override;
   RealtimeSource(const RealtimeSource&) = delete;
   RealtimeSource& operator=(const RealtimeSource&) = delete;
@@ -64,6 +74,8 @@ class RealtimeSource final : public Source {
   };
   std::deque<Item> queue_;
   std::vector<std::size_t> queued_images_;  // per camera index: images in the queue
+  bool live_ = false;
+  bool consumer_started_ = false;  // next() was called: a replay's clock runs
   bool ended_ = false;
   bool stop_ = false;
   std::exception_ptr error_;

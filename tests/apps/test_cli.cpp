@@ -539,7 +539,7 @@ TEST(Cli, RunRealtimeReportsProcessedAndDroppedImages) {
   cv::Mat img(120, 160, CV_8UC1);
   cv::RNG rng(7);
   std::ofstream times(d / "times.txt");
-  rng.fill(img, cv::RNG::UNIFORM, 0, 255);  // one textured view, seen 40 times by a camera at rest: it tracks
+  rng.fill(img, cv::RNG::UNIFORM, 0, 255);  // one textured view, seen 30 times by a camera at rest: it tracks
   for (int i = 0; i < 30; ++i) {
     cv::imwrite((d / "frames" / fmt::format("{}.png", i)).string(), img);
     times << fmt::format("{:.2f} {}.png\n", 0.1 * i, i);

@@ -105,6 +105,9 @@ TEST(Realtime, ALiveSourceIsReleasedAsItArrivesAndOnlyAtSpeedOne) {
   // realtime layer adds no clock of its own, so a slow consumer sees the newest image and drops the rest.
   RealtimeSource src(std::make_unique<SyntheticStream>(1.0), 1.0, RealtimeSource::kDefaultMaxQueue, true);
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // everything has arrived meanwhile
+  // Superseded images are dropped (and their pixels freed) when the newer one arrives, not when the consumer comes:
+  // a stalled filter holds one image per camera.
+  EXPECT_GE(src.realtime().images_dropped, 10u);
   const auto t0 = Clock::now();
   const Taken t = consume(src, std::chrono::milliseconds(1));
   EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 0.5);  // not paced again: 1 s of stream
@@ -112,7 +115,7 @@ TEST(Realtime, ALiveSourceIsReleasedAsItArrivesAndOnlyAtSpeedOne) {
   const RealtimeStats s = src.realtime();
   EXPECT_EQ(s.images_released, 21u);
   EXPECT_EQ(s.images_taken + s.images_dropped, 21u);
-  EXPECT_GE(s.images_dropped, 15u);  // about all but the newest: they were all there when the consumer came
+  EXPECT_GE(s.images_dropped, 10u);  // about all but the newest: they were all there when the consumer came
   EXPECT_THROW(RealtimeSource(std::make_unique<SyntheticStream>(1.0), 2.0, RealtimeSource::kDefaultMaxQueue, true),
                ConfigError);
 }
@@ -149,6 +152,20 @@ TEST(Realtime, AnErrorOfTheStreamArrivesAtItsPlace) {
   const RealtimeStats s = src.realtime();
   EXPECT_EQ(s.images_released, 2u);
   EXPECT_EQ(images + s.images_dropped, 2u);
+}
+
+TEST(Realtime, AStreamFailingAtItsFirstReadFailsTheFirstRequest) {
+  RealtimeSource src(std::make_unique<SyntheticStream>(1.0, 0), 1.0);
+  EXPECT_THROW(src.next(), DataError);
+  EXPECT_EQ(src.realtime().images_released, 0u);
+}
+
+TEST(Realtime, ASourceDestroyedBeforeItsFirstRequestDoesNotHang) {
+  // The acquisition thread waits for the consumer's first request to start the clock: the destructor must end it.
+  const auto t0 = Clock::now();
+  { RealtimeSource src(std::make_unique<SyntheticStream>(60.0), 1.0); }
+  { RealtimeSource live(std::make_unique<SyntheticStream>(60.0), 1.0, RealtimeSource::kDefaultMaxQueue, true); }
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 2.0);
 }
 
 TEST(Realtime, AConsumerThatStopsEarlyDoesNotHang) {

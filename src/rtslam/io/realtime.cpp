@@ -59,15 +59,23 @@ void RealtimeSource::acquire() {
       if (stop_) return;
       const auto now = Clock::now();
       stats_.reader_late_s = std::max(stats_.reader_late_s, std::chrono::duration<double>(now - due).count());
-      if (const auto* img = std::get_if<ImageFrame>(&*m)) {
-        const auto c = static_cast<std::size_t>(std::max(img->camera, 0));
-        if (queued_images_.size() <= c) queued_images_.resize(c + 1, 0);
-        ++queued_images_[c];
+      const auto* img = std::get_if<ImageFrame>(&*m);
+      const auto c = img != nullptr ? static_cast<std::size_t>(std::max(img->camera, 0)) : 0;
+      if (img != nullptr) {
+        // The camera's image still waiting is superseded: dropped now, its pixels freed (a stalled filter holds
+        // at most one image per camera, whatever the queue's length in IMU samples).
+        if (newest_image_.size() <= c) newest_image_.resize(c + 1, nullptr);
+        if (Item* older = newest_image_[c]; older != nullptr) {
+          older->superseded = true;
+          std::get<ImageFrame>(older->m).image.release();
+          ++stats_.images_dropped;
+        }
         ++stats_.images_released;
       } else {
         ++stats_.imu_samples;
       }
-      queue_.push_back(Item{std::move(*m), due});
+      queue_.push_back(Item{std::move(*m), due, false});
+      if (img != nullptr) newest_image_[c] = &queue_.back();  // deque: push_back/pop_front keep it valid
       lock.unlock();
       changed_.notify_all();
     }
@@ -95,17 +103,14 @@ std::optional<Measurement> RealtimeSource::next() {
       if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
       return std::nullopt;
     }
+    if (const auto* img = std::get_if<ImageFrame>(&queue_.front().m); img != nullptr && !queue_.front().superseded) {
+      newest_image_[static_cast<std::size_t>(std::max(img->camera, 0))] = nullptr;  // it is the camera's newest
+    }
     Item item = std::move(queue_.front());
     queue_.pop_front();
     changed_.notify_all();  // room in the queue
-    auto* img = std::get_if<ImageFrame>(&item.m);
-    if (img == nullptr) return std::move(item.m);
-    const auto c = static_cast<std::size_t>(std::max(img->camera, 0));
-    --queued_images_[c];
-    if (queued_images_[c] > 0) {  // a newer image of this camera is already here: this one is too late
-      ++stats_.images_dropped;
-      continue;
-    }
+    if (item.superseded) continue;  // a newer image of this camera arrived before this one was taken (counted)
+    if (!std::holds_alternative<ImageFrame>(item.m)) return std::move(item.m);
     const double lag = std::chrono::duration<double>(Clock::now() - item.released).count();
     ++stats_.images_taken;
     lag_sum_s_ += lag;

@@ -33,7 +33,8 @@ namespace rtslam::io {
 struct RealtimeStats {
   std::size_t images_released = 0;  // by the acquisition thread
   std::size_t images_taken = 0;     // by the consumer
-  std::size_t images_dropped = 0;   // superseded by a newer image of the same camera before being taken
+  std::size_t images_dropped = 0;   // superseded by a newer image of the same camera before being taken (counted
+                                    // when the newer one is released)
   std::size_t imu_samples = 0;
   double max_lag_s = 0.0;           // of the images taken (wall time after their release time)
   double mean_lag_s = 0.0;
@@ -71,9 +72,10 @@ class RealtimeSource final : public Source {
   struct Item {
     Measurement m;
     std::chrono::steady_clock::time_point released;
+    bool superseded;  // an image with a newer one of its camera behind it: dropped (pixels freed), skipped by next()
   };
   std::deque<Item> queue_;
-  std::vector<std::size_t> queued_images_;  // per camera index: images in the queue
+  std::vector<Item*> newest_image_;  // per camera index: its newest image in the queue (null: none)
   bool live_ = false;
   bool consumer_started_ = false;  // next() was called: a replay's clock runs
   bool ended_ = false;

@@ -1,6 +1,7 @@
 // The health monitor's verdicts on hand-made frames: non-finite and implausible states diverge at once, too few
 // corrections for lost_after_s is "lost" (not during the grace period after a start, and counted afresh after an
-// image gap), and a window of matches at the edge of their ellipses is "diverged".
+// image gap), a window of matches at the edge of their ellipses is "diverged", and a quarter second of frames whose
+// matches one-point RANSAC could not explain with one hypothesis is "lost".
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -100,6 +101,51 @@ TEST(HealthMonitor, MatchesAtTheEdgeOfTheirEllipsesOverAWindowDiverge) {
   Health h = Health::Ok;
   for (int k = 61; k <= 90 && h == Health::Ok; ++k) h = m.check(f.map, *f.robot, frame(0.05 * k, 20, 170.0, 20)).health;
   EXPECT_EQ(h, Health::Diverged);
+}
+
+// A frame whose one-point RANSAC ran (cap 22) with `matched` matches of which `inliers` supported its best hypothesis.
+FrameStats ransac_frame(double t_s, int matched, int inliers) {
+  FrameStats s = frame(t_s, matched);
+  s.ransac_max = 22;
+  s.ransac_inliers = inliers;
+  return s;
+}
+
+TEST(HealthMonitor, MatchesThatNoSingleMotionExplainsForAQuarterSecondAreLost) {
+  Fixture f;
+  HealthMonitor m(HealthOptions{});
+  m.restart(0);
+  for (int k = 0; k <= 40; ++k) EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(0.05 * k, 25, 22)).health, Health::Ok);
+  // Low-consensus frames alone, or with fewer than 10 matches, or without RANSAC, do not add up to a verdict.
+  for (int k = 41; k <= 80; ++k) {
+    FrameStats s = k % 2 == 0 ? ransac_frame(0.05 * k, 25, 4) : ransac_frame(0.05 * k, 25, 20);
+    if (k % 5 == 0) s = ransac_frame(0.05 * k, 9, 1);  // too few matches to judge
+    if (k % 7 == 0) s = frame(0.05 * k, 25);           // RANSAC did not run (ransac_max 0)
+    EXPECT_EQ(m.check(f.map, *f.robot, s).health, Health::Ok) << k;
+  }
+  EXPECT_FALSE(m.suspect());  // frame 79 (20 of 25) ended the last streak; frame 80 was not judged
+  // The threshold: 35 % of min(25 matched, cap 22) = 7.7 inliers. From 4.25 s on, every judged frame is low; frames
+  // that are not judged neither extend nor end the streak: lost at 4.50 s, 0.25 s after its first frame.
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(4.20, 25, 8)).health, Health::Ok);
+  EXPECT_FALSE(m.suspect());
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(4.25, 25, 7)).health, Health::Ok);
+  EXPECT_TRUE(m.suspect());  // the last healthy state stops following the estimate
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(4.30, 25, 3)).health, Health::Ok);
+  EXPECT_EQ(m.check(f.map, *f.robot, frame(4.35, 25)).health, Health::Ok);
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(4.40, 8, 1)).health, Health::Ok);
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(4.45, 12, 2)).health, Health::Ok);  // min(12, 22) * 0.35 = 4.2
+  const auto v = m.check(f.map, *f.robot, ransac_frame(4.50, 25, 5));
+  EXPECT_EQ(v.health, Health::Lost);
+  EXPECT_NE(v.reason.find("one-point RANSAC explained fewer than 35 % of the matches"), std::string::npos) << v.reason;
+  EXPECT_NE(v.reason.find("5 of 25"), std::string::npos) << v.reason;
+  // A restart forgets the streak; min_consensus 0 turns the judgment off.
+  m.restart(from_seconds(5.0));
+  EXPECT_FALSE(m.suspect());
+  HealthOptions off;
+  off.min_consensus = 0.0;
+  HealthMonitor n(off);
+  n.restart(0);
+  for (int k = 0; k <= 60; ++k) EXPECT_EQ(n.check(f.map, *f.robot, ransac_frame(0.05 * k, 25, 2)).health, Health::Ok);
 }
 
 TEST(HealthOptions, BoundsAreCheckedWithTheKeyNamed) {

@@ -1,5 +1,6 @@
 #include "rtslam/slam/health.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -24,6 +25,11 @@ void HealthOptions::validate() const {
   require_bound(grace_s >= 0.0 && grace_s <= 3600.0, w, "grace", grace_s, "in [0, 3600] s");
   require_bound(max_frame_gap_s > 0.0 && max_frame_gap_s <= 3600.0, w, "max_frame_gap", max_frame_gap_s,
                 "in (0, 3600] s");
+  require_bound(min_consensus >= 0.0 && min_consensus <= 1.0, w, "min_consensus", min_consensus, "in [0, 1]");
+  require_bound(low_consensus_after_s > 0.0 && low_consensus_after_s <= 3600.0, w, "low_consensus_after",
+                low_consensus_after_s, "in (0, 3600] s");
+  require_bound(consensus_min_matches >= 1 && consensus_min_matches <= 1000000, w, "consensus_min_matches",
+                consensus_min_matches, "in [1, 1e6]");
 }
 
 void read_health(YamlMap m, HealthOptions& o) {
@@ -39,6 +45,9 @@ void read_health(YamlMap m, HealthOptions& o) {
   m.get("max_gyro_bias", o.max_gyro_bias);
   m.get("grace", o.grace_s);
   m.get("max_frame_gap", o.max_frame_gap_s);
+  m.get("min_consensus", o.min_consensus);
+  m.get("low_consensus_after", o.low_consensus_after_s);
+  m.get("consensus_min_matches", o.consensus_min_matches);
   m.finish();
 }
 
@@ -56,6 +65,9 @@ YAML::Node health_to_yaml(const HealthOptions& o) {
   n["max_gyro_bias"] = o.max_gyro_bias;
   n["grace"] = o.grace_s;
   n["max_frame_gap"] = o.max_frame_gap_s;
+  n["min_consensus"] = o.min_consensus;
+  n["low_consensus_after"] = o.low_consensus_after_s;
+  n["consensus_min_matches"] = o.consensus_min_matches;
   return n;
 }
 
@@ -78,6 +90,7 @@ void HealthMonitor::restart(TimeNs t) {
   last_tracked_t_ = t;
   prev_t_ = t;
   nis_.clear();
+  low_consensus_since_.reset();
 }
 
 HealthMonitor::Verdict HealthMonitor::check(const Map& map, const Robot& robot, const FrameStats& stats) {
@@ -129,6 +142,24 @@ HealthMonitor::Verdict HealthMonitor::check(const Map& map, const Robot& robot, 
     v.reason = fmt::format("fewer than {} corrections per frame for {:.2f} s (this frame: {} visible, {} searched, "
                            "{} matched, {} updated)", opt_.min_updated, to_seconds(stats.t - last_tracked_t_),
                            stats.visible, stats.searched, stats.matched, stats.updated);
+    return v;
+  }
+  // One-point RANSAC's consensus: frames where it ran with enough matches are judged; the others neither extend
+  // nor end a streak.
+  if (opt_.min_consensus > 0.0 && stats.ransac_max > 0 && stats.matched >= opt_.consensus_min_matches) {
+    const int possible = std::min(stats.matched, stats.ransac_max);
+    if (stats.ransac_inliers < opt_.min_consensus * possible) {
+      if (!low_consensus_since_) low_consensus_since_ = stats.t;
+    } else {
+      low_consensus_since_.reset();
+    }
+  }
+  if (low_consensus_since_ && stats.t - *low_consensus_since_ >= from_seconds(opt_.low_consensus_after_s)) {
+    v.health = Health::Lost;
+    v.reason = fmt::format(
+        "one-point RANSAC explained fewer than {:.0f} % of the matches in every frame for {:.2f} s "
+        "(this frame: {} of {} matched): the matches no longer agree on one motion",
+        100.0 * opt_.min_consensus, to_seconds(stats.t - *low_consensus_since_), stats.ransac_inliers, stats.matched);
     return v;
   }
   if (nis_.size() == static_cast<std::size_t>(opt_.nis_window)) {

@@ -36,6 +36,7 @@ struct FrameStats {
   int initialized = 0;
   int ransac_inliers = 0;
   int ransac_hypotheses = 0;  // one-point RANSAC hypotheses evaluated (matched in their full ellipse)
+  int ransac_max = 0;         // when one-point RANSAC tested a hypothesis: the most inliers it applies (its cap)
   int reparametrized = 0;
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map

@@ -166,7 +166,9 @@ void System::step(Slot& slot, const Sensor& sensor, const RawData& datum) {
   if (!verdict.note.empty()) logger("slam")->warn("t = {:.3f} s: {}", to_seconds(datum.t), verdict.note);
   slot.counts.final_health = verdict.health;
   if (verdict.health == Health::Ok) {
-    if (stats.updated >= options_.health.min_updated) slot.last_good_x = map_.state().mean(robot.block());
+    if (stats.updated >= options_.health.min_updated && !slot.monitor.suspect()) {
+      slot.last_good_x = map_.state().mean(robot.block());
+    }
   } else {
     ++(verdict.health == Health::Lost ? slot.counts.frames_lost : slot.counts.frames_diverged);
     logger("slam")->warn("t = {:.3f} s: tracking {}: {}{}", to_seconds(datum.t), to_string(verdict.health),

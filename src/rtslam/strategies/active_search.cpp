@@ -449,6 +449,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       }
     }
     stats.ransac_hypotheses = hypotheses;
+    if (hypotheses > 0) stats.ransac_max = opt_.max_updates_ransac;
     if (best_support_.size() >= 2) {
       batch_.clear();
       const size_t n = std::min(best_support_.size(), static_cast<size_t>(opt_.max_updates_ransac));

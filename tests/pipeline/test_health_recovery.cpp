@@ -120,7 +120,9 @@ TEST(HealthRecovery, ATwoSecondImageBlackoutIsNotedAndTrackingResumesWithinOneSe
 
 // The simulator's `ground` preset, seed 8, odometry robot: between 3 and 4.5 s the filter turns its attitude by 13°
 // while every match passes its gate and the NIS per dof stays near 1; only one-point RANSAC's support collapses
-// (docs/configuration.md "health"). The consensus verdict catches it; with it off, nothing does.
+// (docs/configuration.md "health"). The consensus verdict catches it; with it off, nothing does. A regression check
+// on one recorded failure of the simulation: a change to the front end or the filter may make this failure go away
+// (then find another; tests/slam/test_health.cpp checks the verdict's logic on hand-made frames).
 TEST(HealthRecovery, MatchesThatNoSingleMotionExplainsAreCaughtAndTheRunReinitializes) {
   const auto run = [](double min_consensus) {
     ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/sim_mono.yaml");

@@ -148,6 +148,37 @@ TEST(HealthMonitor, MatchesThatNoSingleMotionExplainsForAQuarterSecondAreLost) {
   for (int k = 0; k <= 60; ++k) EXPECT_EQ(n.check(f.map, *f.robot, ransac_frame(0.05 * k, 25, 2)).health, Health::Ok);
 }
 
+TEST(HealthMonitor, AConsensusStreakNeedsJudgedFramesAndAnImageGapEndsIt) {
+  // Review 28 Nov: frames not judged let the streak's clock run out, and a streak went on across an image gap.
+  Fixture f;
+  HealthMonitor m(HealthOptions{});
+  m.restart(0);
+  for (int k = 0; k <= 40; ++k) EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(0.05 * k, 25, 22)).health, Health::Ok);
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(2.05, 25, 3)).health, Health::Ok);
+  EXPECT_TRUE(m.suspect());
+  // Then only frames with 9 matches (not judged): no verdict, and after lost_after (0.5 s) without a judged frame
+  // the streak ends.
+  for (int k = 42; k <= 50; ++k) {
+    EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(0.05 * k, 9, 0)).health, Health::Ok) << k;
+    EXPECT_TRUE(m.suspect()) << k;
+  }
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(2.55, 9, 0)).health, Health::Ok);
+  EXPECT_FALSE(m.suspect());
+  // A frame whose search ran out of its time budget is not judged either.
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(2.60, 25, 3)).health, Health::Ok);
+  for (int k = 53; k <= 60; ++k) {
+    FrameStats s = ransac_frame(0.05 * k, 25, 3);
+    s.budget_hit = true;
+    EXPECT_EQ(m.check(f.map, *f.robot, s).health, Health::Ok) << k;
+  }
+  // An image gap (0.75 s) ends the streak: the first frame after it starts a new one, lost 0.25 s later.
+  const auto after_gap = m.check(f.map, *f.robot, ransac_frame(3.75, 25, 3));
+  EXPECT_EQ(after_gap.health, Health::Ok);
+  EXPECT_FALSE(after_gap.note.empty());
+  for (int k = 76; k <= 79; ++k) EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(0.05 * k, 25, 3)).health, Health::Ok);
+  EXPECT_EQ(m.check(f.map, *f.robot, ransac_frame(4.00, 25, 3)).health, Health::Lost);
+}
+
 TEST(HealthOptions, BoundsAreCheckedWithTheKeyNamed) {
   HealthOptions o;
   o.lost_after_s = 0.0;

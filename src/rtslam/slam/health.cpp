@@ -103,6 +103,7 @@ HealthMonitor::Verdict HealthMonitor::check(const Map& map, const Robot& robot, 
     ++gaps_;
     v.note = fmt::format("no image for {:.2f} s", to_seconds(stats.t - prev_t_));
     last_tracked_t_ = stats.t;
+    low_consensus_since_.reset();  // a streak is of consecutive frames
   }
   if (tracking) prev_t_ = stats.t;
   const auto x = map.state().mean(robot.block());
@@ -144,24 +145,6 @@ HealthMonitor::Verdict HealthMonitor::check(const Map& map, const Robot& robot, 
                            stats.visible, stats.searched, stats.matched, stats.updated);
     return v;
   }
-  // One-point RANSAC's consensus: frames where it ran with enough matches are judged; the others neither extend
-  // nor end a streak.
-  if (opt_.min_consensus > 0.0 && stats.ransac_max > 0 && stats.matched >= opt_.consensus_min_matches) {
-    const int possible = std::min(stats.matched, stats.ransac_max);
-    if (stats.ransac_inliers < opt_.min_consensus * possible) {
-      if (!low_consensus_since_) low_consensus_since_ = stats.t;
-    } else {
-      low_consensus_since_.reset();
-    }
-  }
-  if (low_consensus_since_ && stats.t - *low_consensus_since_ >= from_seconds(opt_.low_consensus_after_s)) {
-    v.health = Health::Lost;
-    v.reason = fmt::format(
-        "one-point RANSAC explained fewer than {:.0f} % of the matches in every frame for {:.2f} s "
-        "(this frame: {} of {} matched): the matches no longer agree on one motion",
-        100.0 * opt_.min_consensus, to_seconds(stats.t - *low_consensus_since_), stats.ransac_inliers, stats.matched);
-    return v;
-  }
   if (nis_.size() == static_cast<std::size_t>(opt_.nis_window)) {
     double sum = 0.0;
     int count = 0;
@@ -173,7 +156,32 @@ HealthMonitor::Verdict HealthMonitor::check(const Map& map, const Robot& robot, 
       v.health = Health::Diverged;
       v.reason = fmt::format("mean NIS per dof {:.2f} over the last {} frames above health/max_nis_per_dof {:.2f}",
                              sum / (2.0 * count), nis_.size(), opt_.max_nis_per_dof);
+      return v;
     }
+  }
+  // One-point RANSAC's consensus. Judged: frames where it tested a hypothesis with enough matches, its search not
+  // cut short by the time budget (a cut support is not a disagreement). The others neither extend nor end a streak,
+  // but a streak no judged frame has confirmed for lost_after_s ends (the last healthy state follows again).
+  const bool judged = opt_.min_consensus > 0.0 && stats.ransac_max > 0 && !stats.budget_hit &&
+                      stats.matched >= opt_.consensus_min_matches;
+  if (!judged) {
+    if (low_consensus_since_ && stats.t - last_low_consensus_t_ >= from_seconds(opt_.lost_after_s)) {
+      low_consensus_since_.reset();
+    }
+    return v;
+  }
+  if (stats.ransac_inliers >= opt_.min_consensus * std::min(stats.matched, stats.ransac_max)) {
+    low_consensus_since_.reset();
+    return v;
+  }
+  if (!low_consensus_since_) low_consensus_since_ = stats.t;
+  last_low_consensus_t_ = stats.t;
+  if (stats.t - *low_consensus_since_ >= from_seconds(opt_.low_consensus_after_s)) {
+    v.health = Health::Lost;
+    v.reason = fmt::format(
+        "one-point RANSAC explained fewer than {:.0f} % of the matches in every frame for {:.2f} s "
+        "(this frame: {} of {} matched): the matches no longer agree on one motion",
+        100.0 * opt_.min_consensus, to_seconds(stats.t - *low_consensus_since_), stats.ransac_inliers, stats.matched);
   }
   return v;
 }

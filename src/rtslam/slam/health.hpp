@@ -11,11 +11,13 @@
 //    max_nis_per_dof (a consistent filter gives 1; matches only come from inside the n_sigma ellipse, so the mean
 //    cannot exceed n_sigma²/2: a mean near that bound means every match sits at the edge of its ellipse).
 //  - no consensus: one-point RANSAC's best hypothesis explained fewer than min_consensus of the frame's matches (at
-//    most max_updates_ransac of them: FrameStats::ransac_max) in every judged frame (ransac_max > 0 and at least
-//    consensus_min_matches matches) for low_consensus_after_s: lost. The matches still pass their gates one by one,
+//    most max_updates_ransac of them: FrameStats::ransac_max) in every judged frame (ransac_max > 0, at least
+//    consensus_min_matches matches, the search's time budget not hit) for low_consensus_after_s: lost (checked
+//    after the NIS). Frames not judged neither extend nor end a streak, but one that no judged frame confirms for
+//    lost_after_s ends, and so does one an image gap interrupts. The matches still pass their gates one by one,
 //    but no single motion explains them; a filter in that state has been seen to turn its attitude by 13° in 1.5 s
 //    with a NIS per dof near 1 (the simulator's `ground` preset, seed 8, odometry robot). In a healthy run such
-//    frames come alone or two in a row (docs/configuration.md "health": 22 sequences, 20 more held out). While a
+//    frames come alone or two in a row (docs/configuration.md "health": 22 sequences, 18 more held out). While a
 //    streak of them lasts, the robot's last healthy state (the one a reset restarts from) is not updated: suspect().
 // The verdicts of "lost", NIS and consensus wait grace_s after a (re)start, while the map is being built. A gap of more
 // than max_frame_gap_s between two frames (an image blackout) is noted, and the lost timer starts again at the frame
@@ -89,6 +91,7 @@ class HealthMonitor {
   TimeNs prev_t_ = 0;
   int gaps_ = 0;
   std::optional<TimeNs> low_consensus_since_;  // the first frame of the current low-consensus streak
+  TimeNs last_low_consensus_t_ = 0;            // its last judged frame
   struct NisFrame {
     double sum = 0.0;
     int count = 0;

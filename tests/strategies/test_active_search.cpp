@@ -19,6 +19,7 @@
 #include "rtslam/strategies/init_grid.hpp"
 #include "rtslam/strategies/map_policies.hpp"
 #include "rtslam/vision/warp.hpp"
+#include "rtslam/vision/zncc.hpp"
 
 namespace rtslam::strategies {
 namespace {
@@ -207,6 +208,47 @@ TEST(ActiveSearch, MatchesPredictedAppearanceAndCorrectsPose) {
   }
   EXPECT_GE(checked, 10);
   expect_pose_consistent(rig, s.T1);
+}
+
+// An uncertain pose (std 15 cm at 2 m: 3σ boxes of about 110 x 110 px, above max_search_size_px2) leaves no box
+// small enough. RT-SLAM's rule alone (min_candidates 0) searches nothing, so the uncertainty can only grow; with
+// the fallback the min_candidates smallest boxes are searched, matched at the true pixels and corrected.
+TEST(ActiveSearch, WhenEveryBoxIsTooLargeTheSmallestAreSearchedAnyway) {
+  for (const int min_candidates : {0, 4}) {
+    SCOPED_TRACE(min_candidates);
+    OutlierScene s;
+    Rig rig(s.T0);
+    ActiveSearchOptions o = test_options();
+    o.min_candidates = min_candidates;
+    ActiveSearchDataManager dm(o, rig.map_manager, 320, 240, 11);
+    const auto truth = init_known_depth_map(rig, dm, s.img0, 0.15, 0.01);
+    RawImage raw;
+    raw.image = s.img1.view();
+    slam::FrameStats stats;
+    dm.process(*rig.map, *rig.sensor, raw, 1, stats);
+    int oversized = 0;
+    for (const auto& m : dm.last_frame()) {
+      const vision::Roi box = vision::SearchEllipse::from_covariance(m.h, m.S, o.n_sigma).bounding_box();
+      if (static_cast<double>(box.w) * box.h > o.max_search_size_px2) ++oversized;
+    }
+    if (min_candidates == 0) {
+      EXPECT_EQ(stats.visible, 0);
+      EXPECT_EQ(stats.searched, 0);
+      EXPECT_EQ(stats.updated, 0);
+      continue;
+    }
+    EXPECT_EQ(stats.visible, 4);
+    EXPECT_EQ(oversized, 4);  // every candidate of the frame came through the fallback
+    EXPECT_GE(stats.updated, 3);
+    for (const auto& m : dm.last_frame()) {
+      if (!m.updated) continue;
+      EXPECT_LT((m.z - project_true(s.T1, truth[static_cast<size_t>(m.landmark_id)])).norm(), 0.6)
+          << "landmark " << m.landmark_id;
+    }
+    const Eigen::Matrix3d P = rig.map->state().cov(rig.robot->block()).topLeftCorner<3, 3>();
+    EXPECT_LT(std::sqrt(P.trace() / 3.0), 0.15 / 2);  // the uncertainty shrank
+    EXPECT_LT((rig.robot->pose().p - s.T1.p).norm(), (s.T0.p - s.T1.p).norm());
+  }
 }
 
 TEST(ActiveSearch, RansacStopsOnceAnInlierWasDrawnWithTheConfidence) {
@@ -443,6 +485,8 @@ TEST(ActiveSearchOptionsBounds, ErrorsNameTheFileTheKeyPathAndTheBound) {
   EXPECT_EQ(config_error_of("search: {n_sigma: 1e9}"), "cfg.yaml/search: n_sigma = 1000000000 must be in (0, 10]");
   EXPECT_EQ(config_error_of("search: {harris: {border_px: 100000}}"),
             "cfg.yaml/search/harris: border_px = 100000 must be in [0, 1000] px");
+  EXPECT_EQ(config_error_of("search: {min_candidates: -1}"),
+            "cfg.yaml/search: min_candidates = -1 must be in [0, 1000]");
   EXPECT_EQ(config_error_of("search: {n_sigma: 3}"), "(no error)");
 }
 

@@ -66,6 +66,7 @@ void ActiveSearchOptions::validate(const std::string& where) const {
   require_bound(max_inits >= 0 && max_inits <= 1000, where, "max_inits", max_inits, "in [0, 1000]");
   require_bound(max_search_size_px2 > 0.0 && max_search_size_px2 <= 1e8, where, "max_search_size_px2",
                 max_search_size_px2, "in (0, 1e8] px²");
+  require_bound(min_candidates >= 0 && min_candidates <= 1000, where, "min_candidates", min_candidates, "in [0, 1000]");
   require_bound(margin_px >= 0.0 && margin_px <= 1000.0, where, "margin_px", margin_px, "in [0, 1000] px");
   require_bound(init_patch_size >= zncc.patch_size && init_patch_size % 2 == 1 && init_patch_size <= 101, where,
                 "init_patch_size", init_patch_size, "odd, >= zncc.patch_size and <= 101");
@@ -97,6 +98,7 @@ ActiveSearchOptions ActiveSearchOptions::from_yaml(YamlMap& map) {
   map.get("iteration_tolerance", o.iteration_tolerance);
   map.get("max_inits", o.max_inits);
   map.get("max_search_size_px2", o.max_search_size_px2);
+  map.get("min_candidates", o.min_candidates);
   map.get("margin_px", o.margin_px);
   map.get("init_patch_size", o.init_patch_size);
   map.get("d_min", o.prior.d_min);
@@ -139,6 +141,7 @@ YAML::Node ActiveSearchOptions::to_yaml() const {
   s["iteration_tolerance"] = iteration_tolerance;
   s["max_inits"] = max_inits;
   s["max_search_size_px2"] = max_search_size_px2;
+  s["min_candidates"] = min_candidates;
   s["margin_px"] = margin_px;
   s["init_patch_size"] = init_patch_size;
   s["d_min"] = prior.d_min;
@@ -192,6 +195,7 @@ ActiveSearchDataManager::ActiveSearchDataManager(ActiveSearchOptions options, co
   set_budget_clock(nullptr);
   candidates_.reserve(512);
   order_.reserve(512);
+  oversized_.reserve(512);
   untried_.reserve(512);
   support_.reserve(512);
   best_support_.reserve(512);
@@ -303,7 +307,11 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     // Search regions are bounded by max_search_size_px2: the matchers' buffers reach their final sizes now.
     reserved_width_ = img->image.width;
     reserved_height_ = img->image.height;
-    matcher_.reserve(opt_.max_search_size_px2, reserved_width_, reserved_height_);
+    // The fallback of min_candidates may search up to the whole image with the full-ellipse matcher.
+    const double image_area = static_cast<double>(reserved_width_) * reserved_height_;
+    matcher_.reserve(
+        opt_.min_candidates > 0 ? std::max(opt_.max_search_size_px2, image_area) : opt_.max_search_size_px2,
+        reserved_width_, reserved_height_);
     matcher_small_.reserve(opt_.max_search_size_px2, reserved_width_, reserved_height_);
   }
   filter::State& state = map.state();
@@ -326,6 +334,19 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   // 1. Predict all observations; keep the visible ones with a reasonable search region and a predicted patch.
   grid_.reset(rng_);
   candidates_.clear();
+  oversized_.clear();
+  auto admit = [&](slam::Observation& o, double max_area) {
+    const int slot = static_cast<int>(candidates_.size());
+    if (!predict_patch(map, sensor, o, slot)) return;
+    Candidate c;
+    c.obs = &o;
+    c.slot = slot;
+    c.h0 = o.h;
+    c.S0 = o.S;
+    c.det0 = o.S.determinant();
+    c.max_area = max_area;
+    candidates_.push_back(c);
+  };
   for (const auto& l : map.landmarks()) {
     slam::Observation* o = l->observation_of(sensor);
     if (o == nullptr) continue;
@@ -336,16 +357,25 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     o->counters.last_visible_frame = frame;
     grid_.occupy(o->h);
     const vision::Roi box = vision::SearchEllipse::from_covariance(o->h, o->S, opt_.n_sigma).bounding_box();
-    if (static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) continue;
-    const int slot = static_cast<int>(candidates_.size());
-    if (!predict_patch(map, sensor, *o, slot)) continue;
-    Candidate c;
-    c.obs = o;
-    c.slot = slot;
-    c.h0 = o->h;
-    c.S0 = o->S;
-    c.det0 = o->S.determinant();
-    candidates_.push_back(c);
+    if (static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) {
+      if (opt_.min_candidates > 0) {
+        const vision::Roi in = box.intersect(vision::Roi{0, 0, image_.width, image_.height});
+        oversized_.push_back({static_cast<double>(in.w) * in.h, static_cast<int>(oversized_.size()), o});
+      }
+      continue;
+    }
+    admit(*o, 0.0);
+  }
+  // Too few small boxes: the smallest oversized ones (ties: the map order) are searched as well. Their S and h are
+  // still this frame's prediction (each observation is predicted once above).
+  if (static_cast<int>(candidates_.size()) < opt_.min_candidates && !oversized_.empty()) {
+    std::sort(oversized_.begin(), oversized_.end(), [](const Oversized& a, const Oversized& b) {
+      return a.area < b.area || (a.area == b.area && a.order < b.order);
+    });
+    for (const Oversized& big : oversized_) {
+      if (static_cast<int>(candidates_.size()) >= opt_.min_candidates) break;
+      if (big.area > 0.0) admit(*big.obs, big.area);
+    }
   }
   stats.visible = static_cast<int>(candidates_.size());
   // Expected information: the largest innovation covariance first, ties in the map order (a stable sort's order,
@@ -491,7 +521,10 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       slam::compute_innovation_covariance(state, o, opt_.sigma_px, opt_.second_order_depth);
       const vision::SearchEllipse region = vision::SearchEllipse::from_covariance(o.h, o.S, opt_.n_sigma);
       const vision::Roi box = region.bounding_box();
-      if (static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) continue;
+      const bool small = static_cast<double>(box.w) * box.h <= opt_.max_search_size_px2;
+      const vision::Roi in = box.intersect(vision::Roi{0, 0, image_.width, image_.height});
+      // The fallback of min_candidates (max_area > 0) keeps a box no larger than its first (clipped) one.
+      if (!small && !(c.max_area > 0.0 && static_cast<double>(in.w) * in.h <= c.max_area)) continue;
       bool found = c.full_matched;  // a RANSAC hypothesis that lost keeps its full-ellipse match (gated below)
       if (!c.full_searched) {
         if (!may_search()) {  // the budget is spent: skipped, neither searched nor failed

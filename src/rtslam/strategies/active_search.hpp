@@ -3,7 +3,10 @@
 // Per image of its camera:
 //  1. predict every landmark's observation (h, compressed H, S = H P Hᵀ + R) and keep the visible ones whose 3σ
 //     search box is not larger than `max_search_size_px2`; warp each landmark's initial patch into its predicted
-//     appearance (plane homography, local affine model of the lens distortion);
+//     appearance (plane homography, local affine model of the lens distortion). When fewer than `min_candidates`
+//     boxes are that small (the filter became uncertain, e.g. across a dropped image), the visible landmarks with
+//     the smallest boxes (clipped to the image) are kept too, up to `min_candidates` in all: without corrections
+//     the uncertainty only grows, and no box would ever be small enough again;
 //  2. one-point RANSAC doing the data association: up to `ransac_ntries` hypotheses, each from one candidate drawn
 //     at random (seeded) among the untried ones and matched by ZNCC in its full n_sigma ellipse; the one-point
 //     mean x_i = x ⊕ K_i (z_i − h_i) re-predicts every other candidate, which is searched only in the small box of
@@ -90,6 +93,10 @@ struct ActiveSearchOptions {
   double iteration_tolerance = 1e-6;  // ... until the correction changes by less than this (m, rad) between two
   int max_inits = 10;                 // RT-SLAM N_INIT
   double max_search_size_px2 = 10000; // RT-SLAM MAX_SEARCH_SIZE: skip larger search boxes (px²)
+  // Fewer boxes within max_search_size_px2 than this: the smallest larger ones are searched too, up to this many
+  // candidates (0: never, as RT-SLAM). 4: one more than the health monitor's min_updated, so that one failed match
+  // still leaves a frame that counts as tracked.
+  int min_candidates = 4;
   double margin_px = 8.0;             // predictions closer to the border are not visible
   int init_patch_size = 31;           // descriptor patch (odd); the matched patch size is zncc.patch_size
   InitGridOptions grid;               // RT-SLAM GRID_HCELLS 6, GRID_VCELLS 4
@@ -112,8 +119,9 @@ struct ActiveSearchOptions {
   void validate(const std::string& where = "search") const;
   /// Keys: sigma_px, second_order_depth, n_sigma, max_updates, max_updates_ransac, ransac_ntries, ransac_confidence,
   /// ransac_low_innov_px,
-  /// gain_recomputations, max_inits, max_search_size_px2, margin_px, init_patch_size, d_min, time_budget_ms,
-  /// grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors; validates.
+  /// gain_recomputations, max_inits, max_search_size_px2, min_candidates, margin_px, init_patch_size, d_min,
+  /// time_budget_ms, grid: {cells_x, cells_y, margin_px}, harris: {...}, zncc: {...}. Unknown keys are errors;
+  /// validates.
   static ActiveSearchOptions from_yaml(YamlMap& map);
   /// The keys of from_yaml with their values (the effective configuration).
   YAML::Node to_yaml() const;
@@ -175,6 +183,7 @@ class ActiveSearchDataManager final : public slam::DataManager {
     Eigen::Vector2d h0 = Eigen::Vector2d::Zero();
     Eigen::Matrix2d S0 = Eigen::Matrix2d::Identity();
     double det0 = 1.0;             // det S0 (the search order)
+    double max_area = 0.0;         // > 0: admitted by the min_candidates fallback, its first box (px², in the image)
     bool tried = false;            // drawn as a RANSAC hypothesis
     bool full_searched = false;    // searched in its full ellipse (result below)
     bool full_matched = false;
@@ -221,6 +230,13 @@ class ActiveSearchDataManager final : public slam::DataManager {
   const Eigen::VectorXd* lin() const { return fej_ ? &fej_mean_ : nullptr; }
   std::vector<Candidate> candidates_;
   std::vector<Candidate*> order_;
+  // Visible landmarks whose search box exceeded max_search_size_px2 in step 1, with its area clipped to the image.
+  struct Oversized {
+    double area = 0.0;
+    int order = 0;  // in the map
+    slam::Observation* obs = nullptr;
+  };
+  std::vector<Oversized> oversized_;
   std::vector<vision::Image> warp_buf_;
   std::vector<vision::Patch> patches_;
   std::vector<vision::ScoreMemo> memos_;  // per slot: its patch's scores in this frame's image (every search reuses)

@@ -238,6 +238,7 @@ TEST(ActiveSearch, WhenEveryBoxIsTooLargeTheSmallestAreSearchedAnyway) {
       continue;
     }
     EXPECT_EQ(stats.visible, 4);
+    EXPECT_EQ(stats.searched, 4);
     EXPECT_EQ(oversized, 4);  // every candidate of the frame came through the fallback
     EXPECT_GE(stats.updated, 3);
     for (const auto& m : dm.last_frame()) {

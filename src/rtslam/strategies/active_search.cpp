@@ -335,7 +335,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   grid_.reset(rng_);
   candidates_.clear();
   oversized_.clear();
-  auto admit = [&](slam::Observation& o, double max_area) {
+  auto admit = [&](slam::Observation& o, bool fallback) {
     const int slot = static_cast<int>(candidates_.size());
     if (!predict_patch(map, sensor, o, slot)) return;
     Candidate c;
@@ -344,7 +344,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     c.h0 = o.h;
     c.S0 = o.S;
     c.det0 = o.S.determinant();
-    c.max_area = max_area;
+    c.fallback = fallback;
     candidates_.push_back(c);
   };
   for (const auto& l : map.landmarks()) {
@@ -364,7 +364,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       }
       continue;
     }
-    admit(*o, 0.0);
+    admit(*o, false);
   }
   // Too few small boxes: the smallest oversized ones (ties: the map order) are searched as well. Their S and h are
   // still this frame's prediction (each observation is predicted once above).
@@ -374,15 +374,17 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
     });
     for (const Oversized& big : oversized_) {
       if (static_cast<int>(candidates_.size()) >= opt_.min_candidates) break;
-      if (big.area > 0.0) admit(*big.obs, big.area);
+      if (big.area > 0.0) admit(*big.obs, true);
     }
   }
   stats.visible = static_cast<int>(candidates_.size());
   // Expected information: the largest innovation covariance first, ties in the map order (a stable sort's order,
-  // without its temporary buffer: the slot is the map order).
+  // without its temporary buffer: the slot is the map order). The fallback's candidates come last: by the time the
+  // active search reaches them, the corrections of the others have shrunk their boxes and their gate.
   order_.clear();
   for (Candidate& c : candidates_) order_.push_back(&c);
   std::sort(order_.begin(), order_.end(), [](const Candidate* a, const Candidate* b) {
+    if (a->fallback != b->fallback) return b->fallback;
     return a->det0 > b->det0 || (a->det0 == b->det0 && a->slot < b->slot);
   });
   const auto t1 = Clock::now();
@@ -521,10 +523,8 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       slam::compute_innovation_covariance(state, o, opt_.sigma_px, opt_.second_order_depth);
       const vision::SearchEllipse region = vision::SearchEllipse::from_covariance(o.h, o.S, opt_.n_sigma);
       const vision::Roi box = region.bounding_box();
-      const bool small = static_cast<double>(box.w) * box.h <= opt_.max_search_size_px2;
-      const vision::Roi in = box.intersect(vision::Roi{0, 0, image_.width, image_.height});
-      // The fallback of min_candidates (max_area > 0) keeps a box no larger than its first (clipped) one.
-      if (!small && !(c.max_area > 0.0 && static_cast<double>(in.w) * in.h <= c.max_area)) continue;
+      // A candidate of the min_candidates fallback is searched whatever its box (the matcher holds the image).
+      if (!c.fallback && static_cast<double>(box.w) * box.h > opt_.max_search_size_px2) continue;
       bool found = c.full_matched;  // a RANSAC hypothesis that lost keeps its full-ellipse match (gated below)
       if (!c.full_searched) {
         if (!may_search()) {  // the budget is spent: skipped, neither searched nor failed

@@ -15,9 +15,10 @@
 //     hypotheses stop early (Civera et al. 2010's adaptive count) once, with the best support's share ε of the
 //     candidates as the inlier ratio, the hypotheses so far (draws whose full search failed do not count) hold an
 //     inlier with probability `ransac_confidence`: 1 − (1 − ε)^k ≥ confidence (ransac_may_stop);
-//  3. the remaining candidates, by expected information (largest det S first), are re-predicted at the corrected
-//     state, searched in their (now small) n_sigma ellipses, gated by Mahalanobis distance (n_sigma²) and corrected
-//     in `gain_recomputations` batched rounds, until `max_updates` updates in the frame;
+//  3. the remaining candidates, by expected information (largest det S first; those of the min_candidates fallback
+//     last), are re-predicted at the corrected state, searched in their (now small) n_sigma ellipses, gated by
+//     Mahalanobis distance (n_sigma²) and corrected in `gain_recomputations` batched rounds, until `max_updates`
+//     updates in the frame;
 // With `time_budget_ms` > 0 the search of stages 2 and 3 stops anytime (the paper's real-time search): from the end
 // of the predictions, the budget clock is read before each ZNCC search and, once the budget is spent, no new search
 // starts — no further RANSAC hypothesis or support search, and the remaining candidates of stage 3 are skipped (not
@@ -183,7 +184,7 @@ class ActiveSearchDataManager final : public slam::DataManager {
     Eigen::Vector2d h0 = Eigen::Vector2d::Zero();
     Eigen::Matrix2d S0 = Eigen::Matrix2d::Identity();
     double det0 = 1.0;             // det S0 (the search order)
-    double max_area = 0.0;         // > 0: admitted by the min_candidates fallback, its first box (px², in the image)
+    bool fallback = false;         // admitted by the min_candidates fallback (its box above max_search_size_px2)
     bool tried = false;            // drawn as a RANSAC hypothesis
     bool full_searched = false;    // searched in its full ellipse (result below)
     bool full_matched = false;

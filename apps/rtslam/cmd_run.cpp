@@ -622,6 +622,14 @@ void run_dataset(const RunOptions& ro) {
         logger("run")->warn("real time: {} image(s) dropped because the filter was busy (speed {}x)", rs.images_dropped,
                             *realtime_speed);
       }
+      // The input itself slower than the clock (reading and decoding, or a consumer behind on IMU samples): the replay
+      // was not at the requested speed, whatever the filter did. A tenth of a second is beyond scheduling noise.
+      if (rs.reader_late_s > 0.1) {
+        logger("run")->warn(
+            "real time: the input fell behind the sensor clock by up to {:.2f} s (reading and decoding "
+            "slower than {}x): this replay ran slower than requested",
+            rs.reader_late_s, *realtime_speed);
+      }
     }
     {
       // The search's time budget: frames where it ran out, landmarks it left unsearched, the search's time.

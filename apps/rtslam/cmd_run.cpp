@@ -488,7 +488,7 @@ void run_dataset(const RunOptions& ro) {
   pipeline::ImageSlamResult result;
   bool interrupted = false;
   nlohmann::json summary;
-  std::string accuracy_line, display_line, calibration_line, realtime_line, budget_line;
+  std::string accuracy_line, display_line, calibration_line, realtime_line, budget_line, fallback_line;
   std::string groundtruth_error;  // --groundtruth given and not usable: the run fails after writing its outputs
   std::vector<double> times;
   io::Percentiles timing;
@@ -573,15 +573,22 @@ void run_dataset(const RunOptions& ro) {
       }
     }
     {
-      long refused = 0, without_search = 0, nis_n = 0, abs_updates = 0, abs_rejected = 0;
+      long refused = 0, without_search = 0, with_fallback = 0, nis_n = 0, abs_updates = 0, abs_rejected = 0;
       double nis_sum = 0.0;
       for (const auto& f : result.frames) {
         refused += f.refused;
         abs_updates += f.absolute_updates;
         abs_rejected += f.absolute_rejected;
         without_search += f.searched == 0 ? 1 : 0;
+        with_fallback += f.fallback > 0 ? 1 : 0;
         nis_sum += f.nis;
         nis_n += f.nis_count;
+      }
+      if (with_fallback > 0) {
+        fallback_line = fmt::format(
+            "  search: in {} frame(s) too few search boxes fitted search/max_search_size_px2; the smallest larger "
+            "ones were searched (search/min_candidates)\n",
+            with_fallback);
       }
       summary["health"] = {{"final", slam::to_string(result.final_health)},
                            {"frames_lost", result.frames_lost},
@@ -589,6 +596,7 @@ void run_dataset(const RunOptions& ro) {
                            {"resets", result.resets},
                            {"image_gaps", result.frame_gaps},
                            {"frames_without_search", without_search},
+                           {"frames_with_search_fallback", with_fallback},
                            {"corrections_refused", refused},
                            {"never_tracked", !pipeline::never_tracked(result).empty()},
                            {"mean_nis_per_dof", nis_n > 0 ? nis_sum / (2.0 * static_cast<double>(nis_n)) : 0.0}};
@@ -744,19 +752,20 @@ void run_dataset(const RunOptions& ro) {
       stages["update"].get<double>(), stages["init"].get<double>(), stages["map"].get<double>(), accuracy_line,
       (result.resets > 0 || result.frames_lost + result.frames_diverged > 0
            ? fmt::format("  health: {} frame(s) lost, {} diverged, {} re-initialization(s); last frame {}\n",
-                         result.frames_lost, result.frames_diverged, result.resets, slam::to_string(result.final_health))
+                         result.frames_lost, result.frames_diverged, result.resets,
+                         slam::to_string(result.final_health))
            : std::string()) +
-      (result.inertial
-          ? fmt::format("  IMU: {}; {} samples, {} gyro / {} accel saturated; {} images before the start\n",
-                        result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
-                        result.imu_accel_saturated, result.images_before_start)
-          : std::string()) +
-      (result.odometry_rescale
-          ? fmt::format("  odometry: the map's scale kept at the odometry's (odometry/rescale): {} rescale(s), "
-                        "factor {:.4f} in all\n",
-                        result.odometry_rescales, result.odometry_rescale_product)
-          : std::string()),
-      calibration_line, realtime_line + budget_line, display_line, ro.out);
+          (result.inertial
+               ? fmt::format("  IMU: {}; {} samples, {} gyro / {} accel saturated; {} images before the start\n",
+                             result.inertial_start, result.imu_samples, result.imu_gyro_saturated,
+                             result.imu_accel_saturated, result.images_before_start)
+               : std::string()) +
+          (result.odometry_rescale
+               ? fmt::format("  odometry: the map's scale kept at the odometry's (odometry/rescale): {} rescale(s), "
+                             "factor {:.4f} in all\n",
+                             result.odometry_rescales, result.odometry_rescale_product)
+               : std::string()),
+      calibration_line, realtime_line + budget_line + fallback_line, display_line, ro.out);
   std::cout << std::flush;
   if (const int sig = RunSignals::received()) {
     std::cerr << fmt::format(

@@ -605,6 +605,8 @@ TEST(Cli, AMissingImageEarlyInTheRunDoesNotLoseTracking) {
   EXPECT_EQ(frames_of(d / "a"), 29);
   EXPECT_EQ(a["health"]["frames_lost"], 0) << a.dump(2);
   EXPECT_EQ(a["health"]["resets"], 0) << a.dump(2);
+  EXPECT_GE(a["health"]["frames_with_search_fallback"], 1) << a.dump(2);  // the frame after the gap at least
+  EXPECT_NE(kept.out.find("the smallest larger ones were searched"), std::string::npos) << kept.out;
   // RT-SLAM's rule alone: lost after the gap.
   const Result lost = run(common + " --config " + (d / "rt_slam.yaml").string() + " --out " + (d / "b").string());
   EXPECT_NE(lost.out.find("tracking lost"), std::string::npos) << lost.out;

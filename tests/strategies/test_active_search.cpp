@@ -232,12 +232,14 @@ TEST(ActiveSearch, WhenEveryBoxIsTooLargeTheSmallestAreSearchedAnyway) {
       if (static_cast<double>(box.w) * box.h > o.max_search_size_px2) ++oversized;
     }
     if (min_candidates == 0) {
+      EXPECT_EQ(stats.fallback, 0);
       EXPECT_EQ(stats.visible, 0);
       EXPECT_EQ(stats.searched, 0);
       EXPECT_EQ(stats.updated, 0);
       continue;
     }
     EXPECT_EQ(stats.visible, 4);
+    EXPECT_EQ(stats.fallback, 4);
     EXPECT_EQ(stats.searched, 4);
     EXPECT_EQ(oversized, 4);  // every candidate of the frame came through the fallback
     EXPECT_GE(stats.updated, 3);

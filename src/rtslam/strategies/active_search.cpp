@@ -376,6 +376,8 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       if (static_cast<int>(candidates_.size()) >= opt_.min_candidates) break;
       if (big.area > 0.0) admit(*big.obs, true);
     }
+    stats.fallback = static_cast<int>(
+        std::count_if(candidates_.begin(), candidates_.end(), [](const Candidate& c) { return c.fallback; }));
   }
   stats.visible = static_cast<int>(candidates_.size());
   // Expected information: the largest innovation covariance first, ties in the map order (a stable sort's order,

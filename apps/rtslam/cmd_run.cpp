@@ -634,8 +634,8 @@ void run_dataset(const RunOptions& ro) {
       // was not at the requested speed, whatever the filter did. A tenth of a second is beyond scheduling noise.
       if (rs.reader_late_s > 0.1) {
         logger("run")->warn(
-            "real time: the input fell behind the sensor clock by up to {:.2f} s (reading and decoding "
-            "slower than {}x): this replay ran slower than requested",
+            "real time: the input fell behind the sensor clock by up to {:.2f} s (reading, decoding and "
+            "feeding the filter slower than {}x): this replay ran slower than requested",
             rs.reader_late_s, *realtime_speed);
       }
     }

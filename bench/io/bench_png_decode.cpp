@@ -1,6 +1,6 @@
 // PNG decoders on real dataset images: OpenCV's imdecode (what io::decode_grey_image uses), libpng's simplified API
 // called directly, and libspng when the build found it (RTSLAM_BENCH_SPNG). Every decoder reads the same bytes from
-// memory (no file I/O is timed) and must give the same pixels (checked once before timing).
+// memory and must give the same pixels (checked once before timing); BM_ReadGreyImage adds reading the file.
 // Images: the first 50 PNGs of $RTSLAM_BENCH_PNG_DIR (e.g. a EuRoC mav0/cam0/data folder); skipped when unset.
 // Run: RTSLAM_BENCH_PNG_DIR=/path/mav0/cam0/data build/bench/io/bench_io --benchmark_repetitions=3
 //        --benchmark_report_aggregates_only=true
@@ -28,17 +28,24 @@ namespace {
 
 using Bytes = std::vector<unsigned char>;
 
+const std::vector<std::filesystem::path>& image_paths() {
+  static const std::vector<std::filesystem::path> paths = [] {
+    std::vector<std::filesystem::path> out;
+    const char* dir = std::getenv("RTSLAM_BENCH_PNG_DIR");
+    if (!dir) return out;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+      if (e.path().extension() == ".png") out.push_back(e.path());
+    std::sort(out.begin(), out.end());
+    out.resize(std::min<std::size_t>(out.size(), 50));
+    return out;
+  }();
+  return paths;
+}
+
 const std::vector<Bytes>& images() {
   static const std::vector<Bytes> files = [] {
     std::vector<Bytes> out;
-    const char* dir = std::getenv("RTSLAM_BENCH_PNG_DIR");
-    if (!dir) return out;
-    std::vector<std::filesystem::path> paths;
-    for (const auto& e : std::filesystem::directory_iterator(dir))
-      if (e.path().extension() == ".png") paths.push_back(e.path());
-    std::sort(paths.begin(), paths.end());
-    paths.resize(std::min<std::size_t>(paths.size(), 50));
-    for (const auto& p : paths) {
+    for (const auto& p : image_paths()) {
       std::ifstream in(p, std::ios::binary);
       out.emplace_back((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     }
@@ -133,5 +140,25 @@ void BM_DecodeGreyImage(benchmark::State& st) {
   st.SetItemsProcessed(st.iterations());
 }
 BENCHMARK(BM_DecodeGreyImage)->Unit(benchmark::kMillisecond);
+
+// What a decoding thread does per image: read the file (from the page cache after the first pass) and decode it.
+void BM_ReadGreyImage(benchmark::State& st) {
+  const auto& paths = image_paths();
+  if (paths.empty()) {
+    st.SkipWithError("set RTSLAM_BENCH_PNG_DIR");
+    return;
+  }
+  std::size_t i = 0;
+  for (auto _ : st) {
+    cv::Mat m = rtslam::io::read_grey_image(paths[i++ % paths.size()].string());
+    if (m.empty()) {
+      st.SkipWithError("an image could not be read");
+      return;
+    }
+    benchmark::DoNotOptimize(m.data);
+  }
+  st.SetItemsProcessed(st.iterations());
+}
+BENCHMARK(BM_ReadGreyImage)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -2,14 +2,20 @@
 // type, split image data and extra chunks, and declines (returns false) everything it does not handle, so that
 // OpenCV decides. PNGs are written here chunk by chunk with the filter of each row chosen.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <libdeflate.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "io_test_util.hpp"
+#include "rtslam/io/image_header.hpp"
 #include "rtslam/io/png_grey.hpp"
 #include "rtslam/io/source.hpp"
 
@@ -176,6 +182,56 @@ TEST(PngGrey, OpenCvWrittenPngsDecodeTheSame) {
     ASSERT_TRUE(decode_png_grey8(png.data(), png.size(), kMaxPixels, fast)) << "level " << level;
     EXPECT_EQ(cv::norm(fast, img, cv::NORM_INF), 0.0) << "level " << level;
   }
+}
+
+void write_bytes(const std::string& path, const Bytes& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+// read_grey_image reads into a buffer its thread keeps: a file read after a larger one must give only its own bytes,
+// a file of unknown size (a pipe) is read in blocks, and a file larger than any image is refused unread.
+TEST(ReadGreyImage, ReadsEachFileWholeWhateverCameBefore) {
+  test::TempDir dir;
+  const cv::Mat big = textured(301, 211), small = textured(17, 9);
+  Bytes big_png, small_png;
+  ASSERT_TRUE(cv::imencode(".png", big, big_png, {cv::IMWRITE_PNG_COMPRESSION, 0}));
+  ASSERT_TRUE(cv::imencode(".png", small, small_png));
+  ASSERT_GT(big_png.size(), 20 * small_png.size());
+  write_bytes(dir / "big.png", big_png);
+  write_bytes(dir / "small.png", small_png);
+  for (const char* name : {"big.png", "small.png", "big.png", "small.png"}) {
+    std::string why;
+    const cv::Mat img = read_grey_image(dir / name, &why);
+    ASSERT_FALSE(img.empty()) << name << ": " << why;
+    EXPECT_EQ(cv::norm(img, std::string(name) == "big.png" ? big : small, cv::NORM_INF), 0.0) << name;
+  }
+  // A small file cut short after the big one was read: the stale bytes left in the buffer must not complete it.
+  write_bytes(dir / "cut.png", Bytes(small_png.begin(), small_png.end() - 30));
+  ASSERT_FALSE(read_grey_image(dir / "big.png").empty());
+  std::string why;
+  EXPECT_TRUE(read_grey_image(dir / "cut.png", &why).empty());
+  EXPECT_NE(why.find("cannot be decoded"), std::string::npos) << why;
+
+  // A named pipe has no size: read in blocks until its writer closes it (the PNG is larger than one block).
+  const std::string fifo = dir / "pipe.png";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::thread writer([&] { write_bytes(fifo, big_png); });
+  why.clear();
+  const cv::Mat piped = read_grey_image(fifo, &why);
+  writer.join();
+  ASSERT_FALSE(piped.empty()) << why;
+  EXPECT_EQ(cv::norm(piped, big, cv::NORM_INF), 0.0);
+
+  // Larger than any image accepted (a sparse file: nothing is written or read).
+  const std::string huge = dir / "huge.png";
+  write_bytes(huge, small_png);
+  std::filesystem::resize_file(huge, 8 * static_cast<std::uintmax_t>(kMaxImagePixels) + (2u << 20));
+  why.clear();
+  EXPECT_TRUE(read_grey_image(huge, &why).empty());
+  EXPECT_NE(why.find("larger than any image accepted"), std::string::npos) << why;
+  EXPECT_TRUE(read_grey_image(dir / "missing.png", &why).empty());
+  EXPECT_EQ(why, "cannot be opened");
 }
 
 }  // namespace

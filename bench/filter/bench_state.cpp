@@ -150,6 +150,8 @@ void BM_CorrectFragmented(benchmark::State& st) {
   rtslam::filter::set_kernel_isa(rtslam::filter::best_kernel_isa());
 }
 BENCHMARK(BM_CorrectFragmented)
+    ->Args({1, 2})
+    ->Args({22, 2})
     ->Args({1, 1})
     ->Args({22, 1})
     ->Args({1, 0})
@@ -177,7 +179,7 @@ void BM_FrameCorrections(benchmark::State& st) {
   st.SetLabel(rtslam::filter::to_string(isa));
   rtslam::filter::set_kernel_isa(rtslam::filter::best_kernel_isa());
 }
-BENCHMARK(BM_FrameCorrections)->Arg(1)->Arg(0)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FrameCorrections)->Arg(2)->Arg(1)->Arg(0)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

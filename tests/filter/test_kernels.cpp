@@ -71,14 +71,20 @@ MatrixXd unpack(const std::vector<double>& packed, int n, int m, int stride) {
   return W;
 }
 
-// Runs f under each available instruction set and returns the results (generic first).
+// Runs f under each available instruction set and returns the results in KernelIsa order (generic, avx2, avx2_fma).
 template <class F>
 auto under_each_isa(F f) {
   std::vector<decltype(f())> out;
-  out.push_back((set_kernel_isa(KernelIsa::generic), f()));
-  if (best_kernel_isa() == KernelIsa::avx2) out.push_back((set_kernel_isa(KernelIsa::avx2), f()));
+  for (const KernelIsa isa : {KernelIsa::generic, KernelIsa::avx2, KernelIsa::avx2_fma}) {
+    if (static_cast<int>(isa) <= static_cast<int>(best_kernel_isa())) out.push_back((set_kernel_isa(isa), f()));
+  }
   set_kernel_isa(best_kernel_isa());
   return out;
+}
+
+// Largest |a − b| relative to the largest |a|.
+double relative_difference(const MatrixXd& a, const MatrixXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / std::max(a.cwiseAbs().maxCoeff(), 1e-300);
 }
 
 bool bit_identical(const MatrixXd& a, const MatrixXd& b) {
@@ -136,8 +142,14 @@ TEST(FilterKernels, DowndateMatchesDenseOnActiveRowsAndLeavesHolesUntouched) {
         }
       }
     }
-    if (results.size() == 2) {
+    if (results.size() >= 2) {
       EXPECT_TRUE(bit_identical(results[0], results[1])) << "m = " << m;
+    }
+    if (results.size() == 3) {  // fused multiply-adds: the same sums, rounded once per term
+      EXPECT_LT(relative_difference(results[2], results[0]), 1e-14) << "m = " << m;
+      if (m == 44) {
+        EXPECT_FALSE(bit_identical(results[2], results[0])) << "the FMA variant is not fused";
+      }
     }
   }
 }
@@ -179,15 +191,25 @@ TEST(FilterKernels, PHtSolveAndProductMatchDenseAndAgreeAcrossInstructionSets) {
     EXPECT_LT((r[1] - solved).cwiseAbs().maxCoeff(), 1e-12);
     EXPECT_LT((r[2] - reduced).cwiseAbs().maxCoeff(), 1e-12);
   }
-  if (results.size() == 2) {
+  if (results.size() >= 2) {
     for (size_t k = 0; k < 3; ++k) EXPECT_TRUE(bit_identical(results[0][k], results[1][k])) << k;
+  }
+  if (results.size() == 3) {
+    for (size_t k = 0; k < 3; ++k) {
+      EXPECT_LT(relative_difference(results[2][k], results[0][k]), 1e-13) << k;
+      EXPECT_FALSE(bit_identical(results[2][k], results[0][k])) << k << ": the FMA variant is not fused";
+    }
   }
 }
 
 TEST(FilterKernels, InstructionSetIsClampedToWhatTheCpuSupports) {
-  EXPECT_EQ(set_kernel_isa(KernelIsa::avx2), best_kernel_isa());
+  EXPECT_EQ(set_kernel_isa(KernelIsa::avx2_fma), best_kernel_isa());
   EXPECT_EQ(kernel_isa(), best_kernel_isa());
+  const KernelIsa plain = set_kernel_isa(KernelIsa::avx2);
+  EXPECT_EQ(plain, best_kernel_isa() == KernelIsa::generic ? KernelIsa::generic : KernelIsa::avx2);
+  EXPECT_EQ(kernel_isa(), plain);
   EXPECT_EQ(set_kernel_isa(KernelIsa::generic), KernelIsa::generic);
+  EXPECT_STREQ(to_string(KernelIsa::avx2_fma), "avx2_fma");
   set_kernel_isa(best_kernel_isa());
 }
 

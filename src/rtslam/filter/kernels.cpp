@@ -5,7 +5,7 @@
 
 #if defined(__x86_64__)
 #include <immintrin.h>
-#define RTSLAM_FILTER_AVX2 __attribute__((target("avx2")))
+#define RTSLAM_FILTER_AVX2 __attribute__((target("avx2")))  // the helpers below (no arithmetic)
 #endif
 
 namespace rtslam::filter {
@@ -16,7 +16,8 @@ KernelIsa detect() {
 #if defined(__x86_64__)
   // __builtin_cpu_supports also checks that the OS saves the AVX registers.
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") ? KernelIsa::avx2 : KernelIsa::generic;
+  if (!__builtin_cpu_supports("avx2")) return KernelIsa::generic;
+  return __builtin_cpu_supports("fma") ? KernelIsa::avx2_fma : KernelIsa::avx2;
 #else
   return KernelIsa::generic;
 #endif
@@ -46,6 +47,8 @@ const char* to_string(KernelIsa isa) {
   switch (isa) {
     case KernelIsa::generic: return "generic";
     case KernelIsa::avx2: return "avx2";
+    case KernelIsa::avx2_fma:
+      return "avx2_fma";
   }
   return "unknown";
 }
@@ -211,109 +214,6 @@ void downdate_generic(double* P, std::int64_t ldP, ActiveRows active, const doub
 
 #if defined(__x86_64__)
 
-// The AVX2 versions below do the generic bodies' operations in the same order, a panel's 8 rows in two registers.
-
-RTSLAM_FILTER_AVX2 void add_P_Ht_avx2(ConstMatrixView P, ActiveRows active, int c0, const int* cols, int ncols,
-                                      ConstMatrixView H, int h0, int k0, int k1, double* W, int m) {
-  const int np = panel_count(active.n);
-  for (int p = 0; p < np; ++p) {
-    const int i0 = p * kP;
-    const int cnt = std::min(kP, active.n - i0);
-    const int* rows = active.rows + i0;
-    alignas(32) double x[kMaxPHtColumns][kP];
-    if (cnt == kP && rows[kP - 1] - rows[0] == kP - 1) {
-      for (int j = 0; j < ncols; ++j) {
-        const double* src = P.data + (c0 + cols[j]) * P.ld + rows[0];
-        _mm256_store_pd(x[j], _mm256_loadu_pd(src));
-        _mm256_store_pd(x[j] + 4, _mm256_loadu_pd(src + 4));
-      }
-    } else {
-      for (int j = 0; j < ncols; ++j) {
-        const double* col = P.data + (c0 + cols[j]) * P.ld;
-        for (int r = 0; r < kP; ++r) x[j][r] = r < cnt ? col[rows[r]] : 0.0;
-      }
-    }
-    for (int k = k0; k < k1; ++k) {
-      __m256d lo = _mm256_setzero_pd(), hi = _mm256_setzero_pd();
-      for (int j = 0; j < ncols; ++j) {
-        const __m256d h = _mm256_set1_pd(H(k, h0 + cols[j]));
-        lo = _mm256_add_pd(lo, _mm256_mul_pd(_mm256_load_pd(x[j]), h));
-        hi = _mm256_add_pd(hi, _mm256_mul_pd(_mm256_load_pd(x[j] + 4), h));
-      }
-      double* w = W + (static_cast<std::int64_t>(p) * m + k) * kP;
-      _mm256_storeu_pd(w, _mm256_add_pd(_mm256_loadu_pd(w), lo));
-      _mm256_storeu_pd(w + 4, _mm256_add_pd(_mm256_loadu_pd(w + 4), hi));
-    }
-  }
-  _mm256_zeroupper();  // before plain SSE code (vision/simd.hpp)
-}
-
-RTSLAM_FILTER_AVX2 void solve_avx2(double* W, int n, int m, ConstMatrixView L) {
-  constexpr int kB = 4;
-  const int np = panel_count(n);
-  for (int p = 0; p < np; ++p) {
-    double* w = W + static_cast<std::int64_t>(p) * m * kP;
-    int k0 = 0;
-    for (; k0 + kB <= m; k0 += kB) {
-      __m256d v[kB][2];
-      for (int c = 0; c < kB; ++c) {
-        v[c][0] = _mm256_loadu_pd(w + (k0 + c) * kP);
-        v[c][1] = _mm256_loadu_pd(w + (k0 + c) * kP + 4);
-      }
-      for (int l = 0; l < k0; ++l) {
-        const __m256d xl = _mm256_loadu_pd(w + l * kP), xh = _mm256_loadu_pd(w + l * kP + 4);
-        for (int c = 0; c < kB; ++c) {
-          const __m256d a = _mm256_set1_pd(L(k0 + c, l));
-          v[c][0] = _mm256_sub_pd(v[c][0], _mm256_mul_pd(xl, a));
-          v[c][1] = _mm256_sub_pd(v[c][1], _mm256_mul_pd(xh, a));
-        }
-      }
-      for (int c = 0; c < kB; ++c) {
-        for (int l = k0; l < k0 + c; ++l) {
-          const __m256d a = _mm256_set1_pd(L(k0 + c, l));
-          v[c][0] = _mm256_sub_pd(v[c][0], _mm256_mul_pd(_mm256_loadu_pd(w + l * kP), a));
-          v[c][1] = _mm256_sub_pd(v[c][1], _mm256_mul_pd(_mm256_loadu_pd(w + l * kP + 4), a));
-        }
-        const __m256d d = _mm256_set1_pd(L(k0 + c, k0 + c));
-        _mm256_storeu_pd(w + (k0 + c) * kP, _mm256_div_pd(v[c][0], d));
-        _mm256_storeu_pd(w + (k0 + c) * kP + 4, _mm256_div_pd(v[c][1], d));
-      }
-    }
-    for (int k = k0; k < m; ++k) {
-      __m256d vl = _mm256_loadu_pd(w + k * kP), vh = _mm256_loadu_pd(w + k * kP + 4);
-      for (int l = 0; l < k; ++l) {
-        const __m256d a = _mm256_set1_pd(L(k, l));
-        vl = _mm256_sub_pd(vl, _mm256_mul_pd(_mm256_loadu_pd(w + l * kP), a));
-        vh = _mm256_sub_pd(vh, _mm256_mul_pd(_mm256_loadu_pd(w + l * kP + 4), a));
-      }
-      const __m256d d = _mm256_set1_pd(L(k, k));
-      _mm256_storeu_pd(w + k * kP, _mm256_div_pd(vl, d));
-      _mm256_storeu_pd(w + k * kP + 4, _mm256_div_pd(vh, d));
-    }
-  }
-  _mm256_zeroupper();
-}
-
-RTSLAM_FILTER_AVX2 void subtract_product_avx2(double* W, int n, int m, const double* U, int mu, int u_stride,
-                                              ConstMatrixView G) {
-  const int np = panel_count(n);
-  for (int p = 0; p < np; ++p) {
-    const double* u = U + static_cast<std::int64_t>(p) * u_stride * kP;
-    double* w = W + static_cast<std::int64_t>(p) * m * kP;
-    for (int l = 0; l < m; ++l) {
-      __m256d lo = _mm256_setzero_pd(), hi = _mm256_setzero_pd();
-      for (int k = 0; k < mu; ++k) {
-        const __m256d g = _mm256_set1_pd(G(k, l));
-        lo = _mm256_add_pd(lo, _mm256_mul_pd(_mm256_loadu_pd(u + k * kP), g));
-        hi = _mm256_add_pd(hi, _mm256_mul_pd(_mm256_loadu_pd(u + k * kP + 4), g));
-      }
-      _mm256_storeu_pd(w + l * kP, _mm256_sub_pd(_mm256_loadu_pd(w + l * kP), lo));
-      _mm256_storeu_pd(w + l * kP + 4, _mm256_sub_pd(_mm256_loadu_pd(w + l * kP + 4), hi));
-    }
-  }
-  _mm256_zeroupper();
-}
-
 // Lane masks for maskload/maskstore: entry b has lane l set when bit l of b is.
 alignas(32) constexpr std::int64_t kLaneMasks[16][4] = {
     {0, 0, 0, 0},   {-1, 0, 0, 0},   {0, -1, 0, 0},   {-1, -1, 0, 0},   {0, 0, -1, 0},   {-1, 0, -1, 0},
@@ -366,139 +266,28 @@ struct TileColumns {
   std::int64_t col_row[kTileCols] = {0, 0, 0, 0};  // covariance rows (lanes past n repeat j0's: never written)
 };
 
-// One tile of the downdate: packed rows p * kP .. + 7 against the columns tc (p >= tc.j0 / kP).
-RTSLAM_FILTER_AVX2 inline void downdate_tile(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m,
-                                             int w_stride, const TileColumns& tc, int p) {
-  const int n = active.n;
-  const int* rows = active.rows;
-  const int j0 = tc.j0;
-  const double* wj = tc.wj;
-  const LaneGroup& gc = *tc.gc;
-  const bool cols_contiguous = tc.contiguous;
-  const std::int64_t* col_row = tc.col_row;
-  const int i0 = p * kP;
-  const double* wi = W + static_cast<std::int64_t>(p) * w_stride * kP;
-  // Same sums as tile_sum: acc_c = acc_c + a * b_c, lanes = rows.
-  __m256d a0l = _mm256_setzero_pd(), a0h = _mm256_setzero_pd(), a1l = _mm256_setzero_pd(),
-          a1h = _mm256_setzero_pd(), a2l = _mm256_setzero_pd(), a2h = _mm256_setzero_pd(),
-          a3l = _mm256_setzero_pd(), a3h = _mm256_setzero_pd();
-  for (int k = 0; k < m; ++k) {
-    const __m256d xl = _mm256_loadu_pd(wi + k * kP);
-    const __m256d xh = _mm256_loadu_pd(wi + k * kP + 4);
-    const double* b = wj + k * kP;
-    __m256d y = _mm256_broadcast_sd(b);
-    a0l = _mm256_add_pd(a0l, _mm256_mul_pd(xl, y));
-    a0h = _mm256_add_pd(a0h, _mm256_mul_pd(xh, y));
-    y = _mm256_broadcast_sd(b + 1);
-    a1l = _mm256_add_pd(a1l, _mm256_mul_pd(xl, y));
-    a1h = _mm256_add_pd(a1h, _mm256_mul_pd(xh, y));
-    y = _mm256_broadcast_sd(b + 2);
-    a2l = _mm256_add_pd(a2l, _mm256_mul_pd(xl, y));
-    a2h = _mm256_add_pd(a2h, _mm256_mul_pd(xh, y));
-    y = _mm256_broadcast_sd(b + 3);
-    a3l = _mm256_add_pd(a3l, _mm256_mul_pd(xl, y));
-    a3h = _mm256_add_pd(a3h, _mm256_mul_pd(xh, y));
-  }
-  if (p == j0 / kP) {
-    // The tile holds the diagonal: element by element, lower triangle only.
-    alignas(32) double acc[kTileCols][kP];
-    _mm256_store_pd(acc[0], a0l);
-    _mm256_store_pd(acc[0] + 4, a0h);
-    _mm256_store_pd(acc[1], a1l);
-    _mm256_store_pd(acc[1] + 4, a1h);
-    _mm256_store_pd(acc[2], a2l);
-    _mm256_store_pd(acc[2] + 4, a2h);
-    _mm256_store_pd(acc[3], a3l);
-    _mm256_store_pd(acc[3] + 4, a3h);
-    write_tile(P, ldP, active, i0, j0, acc);
-    return;
-  }
-  // Strictly below the diagonal: P(rows, cols) −= acc column by column, then the 4 × 8 transpose onto
-  // P(cols, rows).
-  const LaneGroup& gl = active.groups[2 * p];
-  const LaneGroup& gh = active.groups[2 * p + 1];
-  if (cols_contiguous && full_group(gl) && full_group(gh) && gh.base[0] == gl.base[0] + kGroupLanes) {
-    // 8 consecutive covariance rows and 4 consecutive columns (most tiles): plain loads and stores.
-    const std::int64_t pi = gl.base[0];
-    double* c0 = P + col_row[0] * ldP + pi;
-    double* c1 = c0 + ldP;
-    double* c2 = c1 + ldP;
-    double* c3 = c2 + ldP;
-    const __m256d v0l = _mm256_sub_pd(_mm256_loadu_pd(c0), a0l);
-    const __m256d v0h = _mm256_sub_pd(_mm256_loadu_pd(c0 + 4), a0h);
-    const __m256d v1l = _mm256_sub_pd(_mm256_loadu_pd(c1), a1l);
-    const __m256d v1h = _mm256_sub_pd(_mm256_loadu_pd(c1 + 4), a1h);
-    const __m256d v2l = _mm256_sub_pd(_mm256_loadu_pd(c2), a2l);
-    const __m256d v2h = _mm256_sub_pd(_mm256_loadu_pd(c2 + 4), a2h);
-    const __m256d v3l = _mm256_sub_pd(_mm256_loadu_pd(c3), a3l);
-    const __m256d v3h = _mm256_sub_pd(_mm256_loadu_pd(c3 + 4), a3h);
-    _mm256_storeu_pd(c0, v0l);
-    _mm256_storeu_pd(c0 + 4, v0h);
-    _mm256_storeu_pd(c1, v1l);
-    _mm256_storeu_pd(c1 + 4, v1h);
-    _mm256_storeu_pd(c2, v2l);
-    _mm256_storeu_pd(c2 + 4, v2h);
-    _mm256_storeu_pd(c3, v3l);
-    _mm256_storeu_pd(c3 + 4, v3h);
-    double* m0 = P + pi * ldP + col_row[0];  // P(cols, row pi)
-    transpose_store(m0, ldP, v0l, v1l, v2l, v3l);
-    transpose_store(m0 + 4 * ldP, ldP, v0h, v1h, v2h, v3h);
-    return;
-  }
-  // Across holes: each half-panel still one register, by masked loads and stores.
-  __m256d v[kTileCols][2];
-  const __m256d acc[kTileCols][2] = {{a0l, a0h}, {a1l, a1h}, {a2l, a2h}, {a3l, a3h}};
-  for (int c = 0; c < kTileCols; ++c) {
-    double* col = P + col_row[c] * ldP;
-    v[c][0] = _mm256_sub_pd(load_group(col, gl), acc[c][0]);
-    v[c][1] = _mm256_sub_pd(load_group(col, gh), acc[c][1]);
-  }
-  const unsigned valid_cols = gc.mask[0] | gc.mask[1] | gc.mask[2] | gc.mask[3];
-  for (int c = 0; c < kTileCols; ++c) {
-    if (!(valid_cols & (1u << c))) continue;
-    double* col = P + col_row[c] * ldP;
-    store_group(col, gl, v[c][0]);
-    store_group(col, gh, v[c][1]);
-  }
-  for (int h = 0; h < 2; ++h) {
-    const __m256d t0 = _mm256_unpacklo_pd(v[0][h], v[1][h]), t1 = _mm256_unpackhi_pd(v[0][h], v[1][h]);
-    const __m256d t2 = _mm256_unpacklo_pd(v[2][h], v[3][h]), t3 = _mm256_unpackhi_pd(v[2][h], v[3][h]);
-    const __m256d row_v[4] = {_mm256_permute2f128_pd(t0, t2, 0x20), _mm256_permute2f128_pd(t1, t3, 0x20),
-                              _mm256_permute2f128_pd(t0, t2, 0x31), _mm256_permute2f128_pd(t1, t3, 0x31)};
-    for (int r = 0; r < kGroupLanes; ++r) {
-      const int i = i0 + h * kGroupLanes + r;
-      if (i >= n) break;
-      store_group(P + static_cast<std::int64_t>(rows[i]) * ldP, gc, row_v[r]);
-    }
-  }
-}
+// The AVX2 kernels in two variants (kernels_avx2.inc): avx2:: with separate multiplies and adds, the generic
+// versions' results bit for bit; avx2_fma:: with fused multiply-adds. The FMA variant gets its own target so that
+// the compiler cannot fuse anything in the plain one.
+#define RTSLAM_KERNEL_NS avx2
+#define RTSLAM_KERNEL_TARGET __attribute__((target("avx2")))
+#define RTSLAM_MADD(c, a, b) _mm256_add_pd(c, _mm256_mul_pd(a, b))
+#define RTSLAM_NMSUB(c, a, b) _mm256_sub_pd(c, _mm256_mul_pd(a, b))
+#include "kernels_avx2.inc"
+#undef RTSLAM_KERNEL_NS
+#undef RTSLAM_KERNEL_TARGET
+#undef RTSLAM_MADD
+#undef RTSLAM_NMSUB
 
-// Tiles in the order of 8-column strips, both 4-column halves of a strip at each panel: the halves' mirror stores
-// (P(cols, rows), rows of P) fill the two halves of the same cache lines back to back, which the column-by-column
-// order wrote a whole sweep apart (P is larger than the L2 cache, so each line was fetched twice). Every element is
-// computed as before.
-RTSLAM_FILTER_AVX2 void downdate_avx2(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m,
-                                      int w_stride) {
-  const int n = active.n;
-  const int* rows = active.rows;
-  const int np = panel_count(n);
-  static_assert(2 * kTileCols == kP, "a strip is one panel wide");
-  for (int s0 = 0; s0 < n; s0 += kP) {
-    TileColumns tc[2];
-    int halves = 0;
-    for (int j0 = s0; j0 < n && j0 < s0 + kP; j0 += kTileCols) {
-      TileColumns& t = tc[halves++];
-      t.j0 = j0;
-      t.wj = W + static_cast<std::int64_t>(j0 / kP) * w_stride * kP + j0 % kP;
-      t.gc = &active.groups[j0 / kGroupLanes];
-      t.contiguous = full_group(*t.gc);
-      for (int c = 0; c < kTileCols; ++c) t.col_row[c] = j0 + c < n ? rows[j0 + c] : rows[j0];
-    }
-    for (int p = s0 / kP; p < np; ++p)
-      for (int h = 0; h < halves; ++h) downdate_tile(P, ldP, active, W, m, w_stride, tc[h], p);
-  }
-  _mm256_zeroupper();
-}
+#define RTSLAM_KERNEL_NS avx2_fma
+#define RTSLAM_KERNEL_TARGET __attribute__((target("avx2,fma")))
+#define RTSLAM_MADD(c, a, b) _mm256_fmadd_pd(a, b, c)
+#define RTSLAM_NMSUB(c, a, b) _mm256_fnmadd_pd(a, b, c)
+#include "kernels_avx2.inc"
+#undef RTSLAM_KERNEL_NS
+#undef RTSLAM_KERNEL_TARGET
+#undef RTSLAM_MADD
+#undef RTSLAM_NMSUB
 
 #endif  // __x86_64__
 
@@ -507,28 +296,56 @@ RTSLAM_FILTER_AVX2 void downdate_avx2(double* P, std::int64_t ldP, ActiveRows ac
 void add_P_Ht(ConstMatrixView P, ActiveRows active, int c0, const int* cols, int ncols, ConstMatrixView H, int h0,
               int k0, int k1, double* W, int m) {
 #if defined(__x86_64__)
-  if (kernel_isa() == KernelIsa::avx2) return add_P_Ht_avx2(P, active, c0, cols, ncols, H, h0, k0, k1, W, m);
+  switch (kernel_isa()) {
+    case KernelIsa::avx2_fma:
+      return avx2_fma::add_P_Ht_avx2(P, active, c0, cols, ncols, H, h0, k0, k1, W, m);
+    case KernelIsa::avx2:
+      return avx2::add_P_Ht_avx2(P, active, c0, cols, ncols, H, h0, k0, k1, W, m);
+    case KernelIsa::generic:
+      break;
+  }
 #endif
   add_P_Ht_generic(P, active, c0, cols, ncols, H, h0, k0, k1, W, m);
 }
 
 void solve_lower_transposed(double* W, int n, int m, ConstMatrixView L) {
 #if defined(__x86_64__)
-  if (kernel_isa() == KernelIsa::avx2) return solve_avx2(W, n, m, L);
+  switch (kernel_isa()) {
+    case KernelIsa::avx2_fma:
+      return avx2_fma::solve_avx2(W, n, m, L);
+    case KernelIsa::avx2:
+      return avx2::solve_avx2(W, n, m, L);
+    case KernelIsa::generic:
+      break;
+  }
 #endif
   solve_generic(W, n, m, L);
 }
 
 void subtract_product(double* W, int n, int m, const double* U, int mu, int u_stride, ConstMatrixView G) {
 #if defined(__x86_64__)
-  if (kernel_isa() == KernelIsa::avx2) return subtract_product_avx2(W, n, m, U, mu, u_stride, G);
+  switch (kernel_isa()) {
+    case KernelIsa::avx2_fma:
+      return avx2_fma::subtract_product_avx2(W, n, m, U, mu, u_stride, G);
+    case KernelIsa::avx2:
+      return avx2::subtract_product_avx2(W, n, m, U, mu, u_stride, G);
+    case KernelIsa::generic:
+      break;
+  }
 #endif
   subtract_product_generic(W, n, m, U, mu, u_stride, G);
 }
 
 void downdate_mirrored(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m, int w_stride) {
 #if defined(__x86_64__)
-  if (kernel_isa() == KernelIsa::avx2) return downdate_avx2(P, ldP, active, W, m, w_stride);
+  switch (kernel_isa()) {
+    case KernelIsa::avx2_fma:
+      return avx2_fma::downdate_avx2(P, ldP, active, W, m, w_stride);
+    case KernelIsa::avx2:
+      return avx2::downdate_avx2(P, ldP, active, W, m, w_stride);
+    case KernelIsa::generic:
+      break;
+  }
 #endif
   downdate_generic(P, ldP, active, W, m, w_stride);
 }

@@ -8,15 +8,18 @@
 // A panel is then one or two SIMD registers, whatever holes the active rows have in the covariance; `rows` maps
 // packed row i to its covariance row (increasing).
 //
-// Instruction sets: every kernel has a generic C++ version and, on x86-64, an AVX2 version compiled with
-// __attribute__((target("avx2"))) and chosen at run time (no -march flag: the build runs on any x86-64 CPU). Both
-// perform, for every output element, the same sequence of double operations in the same order (separate multiply
-// and add, no FMA), so their results are bit-identical; tests run both and compare.
+// Instruction sets: every kernel has a generic C++ version and, on x86-64, two AVX2 versions compiled with
+// __attribute__((target(...))) and chosen at run time (no -march flag: the build runs on any x86-64 CPU). The generic
+// and the plain AVX2 versions perform, for every output element, the same sequence of double operations in the same
+// order (separate multiply and add), so their results are bit-identical; tests run both and compare. The AVX2 + FMA
+// versions (the default where the CPU has FMA: every AVX2 CPU from Intel and AMD) do the same operations in the
+// same order with each multiply-add fused, one rounding instead of two: their results differ from the others' in
+// the last bits (tests bound the difference), and a run is still deterministic on one machine.
 #include <cstdint>
 
 namespace rtslam::filter {
 
-enum class KernelIsa { generic = 0, avx2 = 1 };
+enum class KernelIsa { generic = 0, avx2 = 1, avx2_fma = 2 };
 
 /// The best instruction set this CPU (and build) supports.
 KernelIsa best_kernel_isa();
@@ -25,7 +28,7 @@ KernelIsa kernel_isa();
 /// Selects an instruction set, clamped to best_kernel_isa(); returns the one in use. Tests and benchmarks lower it
 /// to exercise the generic path; do not call it while other threads run filter code.
 KernelIsa set_kernel_isa(KernelIsa isa);
-/// "generic" or "avx2".
+/// "generic", "avx2" or "avx2_fma".
 const char* to_string(KernelIsa isa);
 
 namespace kernels {

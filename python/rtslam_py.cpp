@@ -107,6 +107,7 @@ py::dict frame_dict(const slam::FrameStats& f) {
   d["budget_hit"] = f.budget_hit;
   d["budget_skipped"] = f.budget_skipped;
   d["time_search_ms"] = f.time_search_ms;
+  d["search_fallback"] = f.fallback;
   d["time_ms"] = f.time_total_ms;
   return d;
 }

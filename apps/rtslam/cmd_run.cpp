@@ -323,6 +323,7 @@ io::FrameStats to_io(const slam::FrameStats& s) {
   f.t_search_ms = s.time_search_ms;
   f.absolute_updates = s.absolute_updates;
   f.absolute_rejected = s.absolute_rejected;
+  f.search_fallback = s.fallback;
   return f;
 }
 

@@ -607,6 +607,20 @@ TEST(Cli, AMissingImageEarlyInTheRunDoesNotLoseTracking) {
   EXPECT_EQ(a["health"]["resets"], 0) << a.dump(2);
   EXPECT_GE(a["health"]["frames_with_search_fallback"], 1) << a.dump(2);  // the frame after the gap at least
   EXPECT_NE(kept.out.find("the smallest larger ones were searched"), std::string::npos) << kept.out;
+  // frames.csv says which frames: its last column (search_fallback) is above 0 in as many rows as the summary counts,
+  // the first of them the frame after the gap (t = 0.5 s).
+  std::istringstream rows(read_file(d / "a" / "frames.csv"));
+  std::string row;
+  std::getline(rows, row);
+  ASSERT_EQ(row.substr(row.rfind(',') + 1), "search_fallback");
+  int with_fallback = 0;
+  long long first_t = -1;
+  while (std::getline(rows, row)) {
+    if (std::stoi(row.substr(row.rfind(',') + 1)) == 0) continue;
+    if (with_fallback++ == 0) first_t = std::stoll(row.substr(0, row.find(',')));
+  }
+  EXPECT_EQ(with_fallback, a["health"]["frames_with_search_fallback"]);
+  EXPECT_EQ(first_t, 500'000'000);
   // RT-SLAM's rule alone: lost after the gap.
   const Result lost = run(common + " --config " + (d / "rt_slam.yaml").string() + " --out " + (d / "b").string());
   EXPECT_NE(lost.out.find("tracking lost"), std::string::npos) << lost.out;

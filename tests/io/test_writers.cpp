@@ -210,6 +210,7 @@ TEST(FramesCsv, RoundTripsEveryField) {
     s.t_search_ms = 0.25 + 1.0 / 7.0 * static_cast<double>(i);
     s.absolute_updates = 5 + static_cast<int>(i);
     s.absolute_rejected = static_cast<int>(i % 2);
+    s.search_fallback = static_cast<int>(i % 4);
   }
   {
     FramesCsvWriter w(dir / "frames.csv");
@@ -247,6 +248,7 @@ TEST(FramesCsv, RoundTripsEveryField) {
     EXPECT_EQ(back[i].t_search_ms, rows[i].t_search_ms);
     EXPECT_EQ(back[i].absolute_updates, rows[i].absolute_updates);
     EXPECT_EQ(back[i].absolute_rejected, rows[i].absolute_rejected);
+    EXPECT_EQ(back[i].search_fallback, rows[i].search_fallback);
   }
   EXPECT_EQ(test::read_text(dir / "frames.csv").rfind(FramesCsvWriter::header(), 0), 0u);
 }

@@ -129,7 +129,8 @@ std::vector<MapPoint> read_map_ply(const std::string& path) {
 const char* FramesCsvWriter::header() {
   return "#timestamp [ns],camera,landmarks,predicted_visible,searched,matched,updated,initialized,ransac_inliers,"
          "t_predict [ms],t_match [ms],t_ransac [ms],t_update [ms],t_init [ms],t_map [ms],t_total [ms],"
-         "refused,nis,nis_count,health,reset,budget_hit,budget_skipped,t_search [ms],absolute_updates,absolute_rejected";
+         "refused,nis,nis_count,health,reset,budget_hit,budget_skipped,t_search [ms],absolute_updates,"
+         "absolute_rejected,search_fallback";
 }
 
 FramesCsvWriter::FramesCsvWriter(const std::string& path) : file_(path), last_flush_(std::chrono::steady_clock::now()) {
@@ -142,11 +143,11 @@ void FramesCsvWriter::write(const FrameStats& s) {
   out_ << s.t << ',' << s.camera << ',' << s.landmarks << ',' << s.predicted_visible << ',' << s.searched << ','
        << s.matched << ',' << s.updated << ',' << s.initialized << ',' << s.ransac_inliers << ','
        << format_double(s.t_predict_ms) << ',' << format_double(s.t_match_ms) << ',' << format_double(s.t_ransac_ms)
-       << ',' << format_double(s.t_update_ms) << ',' << format_double(s.t_init_ms) << ','
-       << format_double(s.t_map_ms) << ',' << format_double(s.t_total_ms) << ',' << s.refused << ','
-       << format_double(s.nis) << ',' << s.nis_count << ',' << s.health << ',' << (s.reset ? 1 : 0) << ','
-       << (s.budget_hit ? 1 : 0) << ',' << s.budget_skipped << ',' << format_double(s.t_search_ms) << ','
-       << s.absolute_updates << ',' << s.absolute_rejected << '\n';
+       << ',' << format_double(s.t_update_ms) << ',' << format_double(s.t_init_ms) << ',' << format_double(s.t_map_ms)
+       << ',' << format_double(s.t_total_ms) << ',' << s.refused << ',' << format_double(s.nis) << ',' << s.nis_count
+       << ',' << s.health << ',' << (s.reset ? 1 : 0) << ',' << (s.budget_hit ? 1 : 0) << ',' << s.budget_skipped << ','
+       << format_double(s.t_search_ms) << ',' << s.absolute_updates << ',' << s.absolute_rejected << ','
+       << s.search_fallback << '\n';
   const auto now = std::chrono::steady_clock::now();
   if (!out_ || now - last_flush_ >= std::chrono::seconds(1)) {
     last_flush_ = now;
@@ -169,8 +170,8 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     std::int64_t n[9];
     double ms[7];
     // 16 columns (files before the health columns), 21 (before the search budget's), 24 (before the absolute
-    // sensors' counters) or 26.
-    bool ok = f.size() == 16 || f.size() == 21 || f.size() == 24 || f.size() == 26;
+    // sensors' counters), 26 (before the search fallback's) or 27.
+    bool ok = f.size() == 16 || f.size() == 21 || f.size() == 24 || f.size() == 26 || f.size() == 27;
     for (size_t k = 0; ok && k < 9; ++k) ok = parse_int64(f[k], n[k]);
     for (size_t k = 0; ok && k < 7; ++k) ok = parse_double(f[9 + k], ms[k]);
     std::int64_t refused = 0, nis_count = 0, health = 0, reset = 0;
@@ -185,9 +186,11 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     if (ok && f.size() >= 24) {
       ok = parse_int64(f[21], budget_hit) && parse_int64(f[22], budget_skipped) && parse_double(f[23], t_search);
     }
-    if (ok && f.size() == 26) ok = parse_int64(f[24], abs_updates) && parse_int64(f[25], abs_rejected);
+    if (ok && f.size() >= 26) ok = parse_int64(f[24], abs_updates) && parse_int64(f[25], abs_rejected);
+    std::int64_t fallback = 0;
+    if (ok && f.size() == 27) ok = parse_int64(f[26], fallback);
     if (!ok) {
-      throw IoError(fmt::format("{}:{}: expected 26 numeric columns ({}) or the first 24, 21 or 16 of them", path,
+      throw IoError(fmt::format("{}:{}: expected 27 numeric columns ({}) or the first 26, 24, 21 or 16 of them", path,
                                 in.line_number(), FramesCsvWriter::header()));
     }
     s.t = n[0];
@@ -207,6 +210,7 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     s.t_search_ms = t_search;
     s.absolute_updates = static_cast<int>(abs_updates);
     s.absolute_rejected = static_cast<int>(abs_rejected);
+    s.search_fallback = static_cast<int>(fallback);
     rows.push_back(s);
   }
   // The writer starts every file with its header: a file without a line is truncated, not a run of no frame.

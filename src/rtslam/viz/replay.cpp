@@ -136,6 +136,7 @@ slam::FrameStats from_io(const io::FrameStats& f) {
   s.budget_hit = f.budget_hit;
   s.budget_skipped = f.budget_skipped;
   s.time_search_ms = f.t_search_ms;
+  s.fallback = f.search_fallback;
   return s;
 }
 

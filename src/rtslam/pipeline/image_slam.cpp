@@ -286,6 +286,8 @@ struct ImageSlam::Impl final : slam::Observer {
     a.initialized += b.initialized;
     a.ransac_inliers += b.ransac_inliers;
     a.ransac_hypotheses += b.ransac_hypotheses;
+    a.ransac_max += b.ransac_max;
+    a.fallback += b.fallback;
     a.reparametrized += b.reparametrized;
     a.removed += b.removed;
     a.evicted += b.evicted;

@@ -338,6 +338,7 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
   auto admit = [&](slam::Observation& o, bool fallback) {
     const int slot = static_cast<int>(candidates_.size());
     if (!predict_patch(map, sensor, o, slot)) return;
+    stats.fallback += fallback ? 1 : 0;
     Candidate c;
     c.obs = &o;
     c.slot = slot;
@@ -376,8 +377,6 @@ void ActiveSearchDataManager::process(slam::Map& map, slam::Sensor& sensor, cons
       if (static_cast<int>(candidates_.size()) >= opt_.min_candidates) break;
       if (big.area > 0.0) admit(*big.obs, true);
     }
-    stats.fallback = static_cast<int>(
-        std::count_if(candidates_.begin(), candidates_.end(), [](const Candidate& c) { return c.fallback; }));
   }
   stats.visible = static_cast<int>(candidates_.size());
   // Expected information: the largest innovation covariance first, ties in the map order (a stable sort's order,

@@ -189,12 +189,13 @@ TEST(CliLive, ATinySearchBudgetCutsTheSearchAndTheRunStillTracks) {
   std::string line;
   std::getline(csv, line);
   EXPECT_NE(line.find(",budget_hit,budget_skipped,t_search [ms]"), std::string::npos) << line;
+  const auto columns = static_cast<size_t>(std::count(line.begin(), line.end(), ',') + 1);  // as the header has
   int hit = 0;
   while (std::getline(csv, line)) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
-    ASSERT_EQ(f.size(), 26u) << line;
+    ASSERT_EQ(f.size(), columns) << line;
     hit += std::stoi(f[21]);
   }
   EXPECT_EQ(hit, b["search_budget"]["frames_hit"].get<int>());

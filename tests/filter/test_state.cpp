@@ -613,7 +613,7 @@ TEST(State, PendingDowndateBeyondItsCapacityIsAppliedFirst) {
   expect_matches_dense(s, d, 1e-9);
 }
 
-TEST(State, GenericAndAvx2KernelsGiveBitIdenticalStates) {
+TEST(State, GenericAndAvx2KernelsGiveBitIdenticalStatesAndFmaTheSameUpToRounding) {
   // The kernels' instruction sets perform the same operations in the same order (filter/kernels.hpp).
   auto run = [](KernelIsa isa) {
     set_kernel_isa(isa);

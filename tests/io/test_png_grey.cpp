@@ -193,11 +193,11 @@ void write_bytes(const std::string& path, const Bytes& bytes) {
 // a file of unknown size (a pipe) is read in blocks, and a file larger than any image is refused unread.
 TEST(ReadGreyImage, ReadsEachFileWholeWhateverCameBefore) {
   test::TempDir dir;
-  const cv::Mat big = textured(301, 211), small = textured(17, 9);
+  const cv::Mat big = textured(512, 400), small = textured(17, 9);
   Bytes big_png, small_png;
   ASSERT_TRUE(cv::imencode(".png", big, big_png, {cv::IMWRITE_PNG_COMPRESSION, 0}));
   ASSERT_TRUE(cv::imencode(".png", small, small_png));
-  ASSERT_GT(big_png.size(), 20 * small_png.size());
+  ASSERT_GT(big_png.size(), std::size_t{3} << 16);  // several of the blocks a file of unknown size is read in
   write_bytes(dir / "big.png", big_png);
   write_bytes(dir / "small.png", small_png);
   for (const char* name : {"big.png", "small.png", "big.png", "small.png"}) {
@@ -206,14 +206,15 @@ TEST(ReadGreyImage, ReadsEachFileWholeWhateverCameBefore) {
     ASSERT_FALSE(img.empty()) << name << ": " << why;
     EXPECT_EQ(cv::norm(img, std::string(name) == "big.png" ? big : small, cv::NORM_INF), 0.0) << name;
   }
-  // A small file cut short after the big one was read: the stale bytes left in the buffer must not complete it.
-  write_bytes(dir / "cut.png", Bytes(small_png.begin(), small_png.end() - 30));
+  // The big file cut short, read after the whole one: the buffer still holds the missing tail, which must not
+  // complete it.
+  write_bytes(dir / "cut.png", Bytes(big_png.begin(), big_png.end() - 30));
   ASSERT_FALSE(read_grey_image(dir / "big.png").empty());
   std::string why;
   EXPECT_TRUE(read_grey_image(dir / "cut.png", &why).empty());
   EXPECT_NE(why.find("cannot be decoded"), std::string::npos) << why;
 
-  // A named pipe has no size: read in blocks until its writer closes it (the PNG is larger than one block).
+  // A named pipe has no size: read in blocks until its writer closes it (the PNG spans several blocks).
   const std::string fifo = dir / "pipe.png";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   std::thread writer([&] { write_bytes(fifo, big_png); });
@@ -232,6 +233,10 @@ TEST(ReadGreyImage, ReadsEachFileWholeWhateverCameBefore) {
   EXPECT_NE(why.find("larger than any image accepted"), std::string::npos) << why;
   EXPECT_TRUE(read_grey_image(dir / "missing.png", &why).empty());
   EXPECT_EQ(why, "cannot be opened");
+  // A folder opens but cannot be read: an error naming the problem, not an exception.
+  why.clear();
+  EXPECT_TRUE(read_grey_image(dir.str(), &why).empty());
+  EXPECT_EQ(why.rfind("cannot be read", 0), 0u) << why;
 }
 
 }  // namespace

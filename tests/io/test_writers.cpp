@@ -289,6 +289,47 @@ TEST(FramesCsv, WithoutCloseNoFileIsLeft) {
   EXPECT_FALSE(fs::exists(dir / "frames.csv.tmp"));
 }
 
+// Files of earlier versions (fewer columns) still read: the columns they lack read as 0; any other count is refused.
+TEST(FramesCsv, ReadsTheShorterRowsOfEarlierVersions) {
+  TempDir dir;
+  FrameStats s;
+  s.t = 1000;
+  s.landmarks = 7;
+  s.t_total_ms = 2.5;
+  s.absolute_updates = 3;
+  s.absolute_rejected = 1;
+  s.search_fallback = 2;
+  {
+    FramesCsvWriter w(dir / "frames.csv");
+    w.write(s);
+    w.close();
+  }
+  const std::string row = test::read_text(dir / "frames.csv").substr(std::string(FramesCsvWriter::header()).size() + 1);
+  std::vector<std::string> fields;
+  for (std::size_t a = 0, b; a <= row.size(); a = b + 1) {
+    b = row.find_first_of(",\n", a);
+    if (b == std::string::npos) b = row.size();
+    if (b > a) fields.push_back(row.substr(a, b - a));
+  }
+  ASSERT_EQ(fields.size(), 27u);
+  for (const std::size_t columns : {26u, 24u, 21u, 16u, 25u}) {
+    std::string text = "#header\n";
+    for (std::size_t k = 0; k < columns; ++k) text += (k > 0 ? "," : "") + fields[k];
+    test::write_text(dir / "old.csv", text + "\n");
+    if (columns == 25) {
+      EXPECT_THROW(read_frames_csv(dir / "old.csv"), IoError);
+      continue;
+    }
+    const auto back = read_frames_csv(dir / "old.csv");
+    ASSERT_EQ(back.size(), 1u) << columns;
+    EXPECT_EQ(back[0].t, 1000);
+    EXPECT_EQ(back[0].landmarks, 7);
+    EXPECT_EQ(back[0].t_total_ms, 2.5);
+    EXPECT_EQ(back[0].absolute_updates, columns >= 26 ? 3 : 0) << columns;
+    EXPECT_EQ(back[0].search_fallback, 0) << columns;
+  }
+}
+
 // A file-size limit (RLIMIT_FSIZE, SIGXFSZ ignored: the write fails with EFBIG as on a full disk), in a child
 // process: every writer throws IoError naming the final file, which does not exist afterwards.
 TEST(AtomicFile, AWriteErrorThrowsNamingTheFileAndLeavesNoFinalFile) {

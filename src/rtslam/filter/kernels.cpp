@@ -268,7 +268,8 @@ struct TileColumns {
 
 // The AVX2 kernels in two variants (kernels_avx2.inc): avx2:: with separate multiplies and adds, the generic
 // versions' results bit for bit; avx2_fma:: with fused multiply-adds. The FMA variant gets its own target so that
-// the compiler cannot fuse anything in the plain one.
+// the plain one has no FMA to fuse with, and the module is compiled with -ffp-contract=off (filter/CMakeLists.txt)
+// so that a -march build does not fuse the plain and generic versions either.
 #define RTSLAM_KERNEL_NS avx2
 #define RTSLAM_KERNEL_TARGET __attribute__((target("avx2")))
 #define RTSLAM_MADD(c, a, b) _mm256_add_pd(c, _mm256_mul_pd(a, b))
@@ -288,6 +289,7 @@ struct TileColumns {
 #undef RTSLAM_KERNEL_TARGET
 #undef RTSLAM_MADD
 #undef RTSLAM_NMSUB
+#undef RTSLAM_FILTER_AVX2
 
 #endif  // __x86_64__
 

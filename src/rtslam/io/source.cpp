@@ -2,11 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <filesystem>
-#include <system_error>
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <system_error>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -217,20 +218,28 @@ cv::Mat read_grey_image(const std::string& path, std::string* why, int* bits) {
   }
   // Read in blocks into this thread's buffer, kept from image to image (the decoding threads read one file after
   // another: a fresh vector grown byte by byte through istreambuf_iterator cost more CPU than inflating the PNG).
+  // The first block is the whole file and one byte more (a short read then means the end); then blocks of 64 KB
+  // (a file that grew, or a pipe, whose size is unknown).
   thread_local std::vector<unsigned char> buffer;
+  constexpr std::size_t kBlock = std::size_t{1} << 16;
   std::size_t size = 0;
-  std::size_t block = !ec && file_bytes > 0 ? static_cast<std::size_t>(file_bytes) + 1 : std::size_t{1} << 16;
-  for (;;) {
-    if (buffer.size() < size + block) buffer.resize(size + block);
-    const auto got =
-        in.rdbuf()->sgetn(reinterpret_cast<char*>(buffer.data() + size), static_cast<std::streamsize>(block));
-    if (got <= 0) break;
-    size += static_cast<std::size_t>(got);
-    if (size > kMaxBytes) {  // grew past the size it had, or its size was unknown (a pipe)
-      if (why) *why = fmt::format("cannot be decoded: more than {} bytes, larger than any image accepted", kMaxBytes);
-      return {};
+  std::size_t block = !ec && file_bytes > 0 ? static_cast<std::size_t>(file_bytes) + 1 : kBlock;
+  try {
+    for (;;) {
+      if (buffer.size() < size + block) buffer.resize(size + block);
+      const auto got =
+          in.rdbuf()->sgetn(reinterpret_cast<char*>(buffer.data() + size), static_cast<std::streamsize>(block));
+      size += static_cast<std::size_t>(std::max<std::streamsize>(got, 0));
+      if (size > kMaxBytes) {
+        if (why) *why = fmt::format("cannot be decoded: more than {} bytes, larger than any image accepted", kMaxBytes);
+        return {};
+      }
+      if (got < static_cast<std::streamsize>(block)) break;  // the end (sgetn reads short only there)
+      block = kBlock;
     }
-    block = std::max(block, std::size_t{1} << 16);
+  } catch (const std::exception& e) {  // a read error (e.g. EIO, or a folder given as an image)
+    if (why) *why = fmt::format("cannot be read: {}", e.what());
+    return {};
   }
   return decode_grey_image(buffer.data(), size, why, bits);
 }

@@ -102,7 +102,7 @@ struct FrameStats {
   double t_search_ms = 0.0;  // the search's time (RANSAC + active search + their corrections)
   int absolute_updates = 0;  // absolute position/pose fixes applied since the previous frame (and gated out)
   int absolute_rejected = 0;
-  int search_fallback = 0;  // of predicted_visible: searched although their box exceeded max_search_size_px2
+  int search_fallback = 0;  // of predicted_visible: admitted although their box exceeded max_search_size_px2
 };
 
 /// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), into frames.csv.tmp

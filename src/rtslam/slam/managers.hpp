@@ -37,7 +37,7 @@ struct FrameStats {
   int ransac_inliers = 0;
   int ransac_hypotheses = 0;  // one-point RANSAC hypotheses evaluated (matched in their full ellipse)
   int ransac_max = 0;         // when one-point RANSAC tested a hypothesis: the most inliers it applies (its cap)
-  int fallback = 0;  // of `visible`: searched although their box exceeded max_search_size_px2 (search/min_candidates)
+  int fallback = 0;  // of `visible`: admitted although their box exceeded max_search_size_px2 (search/min_candidates)
   int reparametrized = 0;
   int removed = 0;
   int evicted = 0;  // of `removed`: dropped to make room in a full map

@@ -104,16 +104,21 @@ struct Rig {
   }
 };
 
+/// One frame of `img` through the data manager; returns its statistics.
+slam::FrameStats process_frame(Rig& rig, ActiveSearchDataManager& dm, const vision::Image& img, long frame) {
+  RawImage raw;
+  raw.image = img.view();
+  slam::FrameStats stats;
+  dm.process(*rig.map, *rig.sensor, raw, frame, stats);
+  return stats;
+}
+
 /// Frame 0 (initialization by the data manager), then the landmarks' depths are set to the truth with a small
 /// uncertainty and the robot gets a pose prior of std (sigma_p, sigma_th) around the frame-0 pose: the situation of
 /// a tracked map after a prediction. Returns the true 3D points of the landmarks, by landmark id.
 std::vector<Eigen::Vector3d> init_known_depth_map(Rig& rig, ActiveSearchDataManager& dm, const vision::Image& img0,
                                                   double sigma_p, double sigma_th) {
-  RawImage raw;
-  raw.image = img0.view();
-  slam::FrameStats stats;
-  dm.process(*rig.map, *rig.sensor, raw, 0, stats);
-  EXPECT_GE(stats.initialized, 12);
+  EXPECT_GE(process_frame(rig, dm, img0, 0).initialized, 12);
   filter::State& state = rig.map->state();
   std::vector<Eigen::Vector3d> truth(rig.map->landmarks().size());
   for (const auto& l : rig.map->landmarks()) {
@@ -193,10 +198,7 @@ TEST(ActiveSearch, MatchesPredictedAppearanceAndCorrectsPose) {
   Rig rig(s.T0);
   ActiveSearchDataManager dm(test_options(), rig.map_manager, 320, 240, 11);
   const auto truth = init_known_depth_map(rig, dm, s.img0, 0.03, 0.01);
-  RawImage raw;
-  raw.image = s.img1.view();
-  slam::FrameStats stats;
-  dm.process(*rig.map, *rig.sensor, raw, 1, stats);
+  const slam::FrameStats stats = process_frame(rig, dm, s.img1, 1);
   EXPECT_GE(stats.updated, 10);
   EXPECT_GE(stats.ransac_inliers, 5);
   int checked = 0;
@@ -222,10 +224,7 @@ TEST(ActiveSearch, WhenEveryBoxIsTooLargeTheSmallestAreSearchedAnyway) {
     o.min_candidates = min_candidates;
     ActiveSearchDataManager dm(o, rig.map_manager, 320, 240, 11);
     const auto truth = init_known_depth_map(rig, dm, s.img0, 0.15, 0.01);
-    RawImage raw;
-    raw.image = s.img1.view();
-    slam::FrameStats stats;
-    dm.process(*rig.map, *rig.sensor, raw, 1, stats);
+    const slam::FrameStats stats = process_frame(rig, dm, s.img1, 1);
     int oversized = 0;
     for (const auto& m : dm.last_frame()) {
       const vision::Roi box = vision::SearchEllipse::from_covariance(m.h, m.S, o.n_sigma).bounding_box();
@@ -281,10 +280,7 @@ TEST(ActiveSearch, RansacDrawsFewerHypothesesWhenTheSupportIsLarge) {
     o.ransac_confidence = confidence;
     ActiveSearchDataManager dm(o, rig.map_manager, 320, 240, 11);
     init_known_depth_map(rig, dm, s.img0, 0.03, 0.01);
-    RawImage raw;
-    raw.image = s.img1.view();
-    slam::FrameStats stats;
-    dm.process(*rig.map, *rig.sensor, raw, 1, stats);
+    const slam::FrameStats stats = process_frame(rig, dm, s.img1, 1);
     ASSERT_GE(stats.visible, 10);
     if (confidence > 0.0) {
       EXPECT_GE(stats.ransac_hypotheses, 1);
@@ -309,10 +305,7 @@ TEST(ActiveSearch, OnePointRansacRejectsPlantedOutlier) {
   const Eigen::Vector2d z_true = project_true(s.T1, truth[static_cast<size_t>(victim)]);
   vision::Image img1 = s.img1;
   plant_outlier(img1, z_true, kOffset);
-  RawImage raw;
-  raw.image = img1.view();
-  slam::FrameStats stats;
-  dm.process(*rig.map, *rig.sensor, raw, 1, stats);
+  const slam::FrameStats stats = process_frame(rig, dm, img1, 1);
   bool seen = false;
   for (const auto& m : dm.last_frame()) {
     if (m.landmark_id != victim) continue;
@@ -343,10 +336,7 @@ TEST(ActiveSearch, WithoutRansacThePlantedOutlierIsMatched) {
   const Eigen::Vector2d z_true = project_true(s.T1, truth[static_cast<size_t>(victim)]);
   vision::Image img1 = s.img1;
   plant_outlier(img1, z_true, kOffset);
-  RawImage raw;
-  raw.image = img1.view();
-  slam::FrameStats stats;
-  dm.process(*rig.map, *rig.sensor, raw, 1, stats);
+  const slam::FrameStats stats = process_frame(rig, dm, img1, 1);
   EXPECT_EQ(stats.ransac_inliers, 0);
   bool matched_wrong = false;
   for (const auto& m : dm.last_frame()) {
@@ -359,10 +349,7 @@ TEST(ActiveSearch, InitializesLandmarksWithPatchAndView) {
   OutlierScene s;
   Rig rig(s.T0);
   ActiveSearchDataManager dm(test_options(), rig.map_manager, 320, 240, 3);
-  RawImage raw;
-  raw.image = s.img0.view();
-  slam::FrameStats stats;
-  dm.process(*rig.map, *rig.sensor, raw, 0, stats);
+  const slam::FrameStats stats = process_frame(rig, dm, s.img0, 0);
   ASSERT_GE(stats.initialized, 12);
   EXPECT_LE(stats.initialized, 24);
   for (const auto& l : rig.map->landmarks()) {

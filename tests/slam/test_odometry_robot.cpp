@@ -48,7 +48,7 @@ struct OdometryRig {
     params.k_p = 0.3;
     params.k_theta = 0.4;
     map = &world.add_map();
-    system = std::make_unique<System>(world, *map, std::make_unique<NoMapManager>());
+    system = std::make_unique<System>(*map, std::make_unique<NoMapManager>());
     auto r = std::make_unique<OdometryRobot>(params, "robot", scale);
     robot = r.get();
     models::CameraIntrinsics c;

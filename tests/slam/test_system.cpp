@@ -101,7 +101,7 @@ struct InertialRig {
   Recorder recorder;
   explicit InertialRig(int start_at, SystemOptions so = {}, bool with_gps = false) {
     map = &world.add_map();
-    system = std::make_unique<System>(world, *map, std::make_unique<NoMapManager>(), so);
+    system = std::make_unique<System>(*map, std::make_unique<NoMapManager>(), so);
     auto robot = std::make_unique<InertialRobot>(models::InertialParams{});
     camera = &robot->add_sensor(std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
     auto dm_ptr = std::make_unique<CountingDataManager>();
@@ -300,7 +300,7 @@ TEST(System, AHealthVerdictResetsTheMapAndRestartsTheRobotAtItsLastHealthyPose) 
 TEST(System, RobotsWithoutInputsProcessAtOnce) {
   World world;
   Map& map = world.add_map();
-  System system(world, map, std::make_unique<NoMapManager>());
+  System system(map, std::make_unique<NoMapManager>());
   auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
   CountingDataManager& counting =
       add_counted(*robot, std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
@@ -324,7 +324,7 @@ TEST(System, RobotsWithoutInputsProcessAtOnce) {
 TEST(System, AStereoPairIsOneFrame) {
   World world;
   Map& map = world.add_map();
-  System system(world, map, std::make_unique<NoMapManager>());
+  System system(map, std::make_unique<NoMapManager>());
   auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
   CountingDataManager& c0 = add_counted(*robot, std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
   CountingDataManager& c1 = add_counted(*robot, std::make_unique<PinholeSensor>("cam1", system_camera(), math::Pose{}));

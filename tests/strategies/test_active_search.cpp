@@ -381,7 +381,7 @@ TrackResult track_sequence(std::uint64_t seed, int n_frames) {
   const vision::Image tex = make_texture(5);
   TrackResult r;
   Rig rig(math::Pose::identity());
-  slam::System system(rig.world, *rig.map, std::make_unique<PolicyMapManager>(MapPolicyOptions{}));
+  slam::System system(*rig.map, std::make_unique<PolicyMapManager>(MapPolicyOptions{}));
   ActiveSearchOptions o;
   o.prior.d_min = 1.0;
   rig.sensor->set_data_manager(std::make_unique<ActiveSearchDataManager>(o, rig.map_manager, 320, 240, seed));

@@ -177,7 +177,7 @@ BuiltSystem Registry::build(const BuildContext& c) const {
   const double window_s = 2.0 * o.imu.init_window_s + o.imu.vi_init.max_window_s + 2.0;
   const double rate = c.rig.imu ? std::max(c.rig.imu->rate_hz, 1.0) : 200.0;
   sys.input_window = static_cast<std::size_t>(std::max(64.0, window_s * rate * 1.5));
-  b.system = std::make_unique<slam::System>(*b.world, *b.map, std::move(mm), sys);
+  b.system = std::make_unique<slam::System>(*b.map, std::move(mm), sys);
 
   add_robot_to(b, c);
   if (o.zero_velocity.enabled) b.system->add_hook(std::make_unique<strategies::ZeroVelocityUpdater>(o.zero_velocity));

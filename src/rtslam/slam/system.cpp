@@ -11,8 +11,8 @@
 
 namespace rtslam::slam {
 
-System::System(World& world, Map& map, std::unique_ptr<MapManager> map_manager, SystemOptions options)
-    : world_(world), map_(map), map_manager_(std::move(map_manager)), options_(options),
+System::System(Map& map, std::unique_ptr<MapManager> map_manager, SystemOptions options)
+    : map_(map), map_manager_(std::move(map_manager)), options_(options),
       pending_(options.max_pending + 1) {
   RTSLAM_CHECK(map_manager_ != nullptr, "a System needs a MapManager");
   options_.health.validate();

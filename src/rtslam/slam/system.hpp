@@ -90,7 +90,7 @@ struct SystemOptions {
 
 class System {
  public:
-  System(World& world, Map& map, std::unique_ptr<MapManager> map_manager, SystemOptions options = {});
+  System(Map& map, std::unique_ptr<MapManager> map_manager, SystemOptions options = {});
 
   /// Adds a robot (not yet in the map: its starter puts it there) with its sensors. Its sensors get their ids now;
   /// its proprioceptive inputs are fed with sensor_id = the returned input id.
@@ -167,7 +167,6 @@ class System {
   void step(Slot& slot, const Sensor& sensor, const RawData& datum);
   void recycle(std::unique_ptr<RawData> datum);
 
-  World& world_;
   Map& map_;
   std::unique_ptr<MapManager> map_manager_;
   SystemOptions options_;

@@ -7,6 +7,7 @@
 #include <limits>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "io_test_util.hpp"

@@ -8,6 +8,7 @@
 #include <variant>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
 #include "io_test_util.hpp"

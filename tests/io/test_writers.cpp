@@ -12,6 +12,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include <nlohmann/json.hpp>
+
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"

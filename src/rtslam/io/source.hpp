@@ -16,7 +16,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
 #include "rtslam/core/time.hpp"

@@ -9,6 +9,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "rtslam/core/error.hpp"

@@ -8,12 +8,10 @@
 # (rtslam_pch_module, rtslam_pch_test) that gets its options the way the targets of its kind do
 # (rtslam_module_settings, rtslam_test_settings), and reused (REUSE_FROM) by each candidate of that kind whose own
 # options are exactly the holder's: "module" for the module libraries and the programs built like them, "test" for
-# the test executables. A candidate that adds options of its own (the filter's -ffp-contract=off, the fuzzer's
-# coverage hooks on core and io, a test's FULL_OPT) parses its headers itself, and so does a source file with options
-# of its own (the ROS parts' -std=c++17). The Release tree (GCC) uses none, so it still checks that every unit
+# the test executables. A candidate that adds options of its own (-ffp-contract=off of the filter and the
+# simulator, the fuzzer's coverage hooks on core and io, a test's FULL_OPT) parses its headers itself, and so does a
+# source file with options or definitions of its own (the ROS parts' -std=c++17, the viewer's embedded assets). The Release tree (GCC) uses none, so it still checks that every unit
 # includes what it uses.
-option(RTSLAM_PCH "Precompile the system headers every unit includes (faster clean builds)" ON)
-
 set(RTSLAM_PCH_HEADERS
   <algorithm> <array> <chrono> <cmath> <cstddef> <cstdint> <cstdio> <filesystem> <fstream> <functional> <map>
   <memory> <mutex> <optional> <ostream> <sstream> <string> <string_view> <thread> <unordered_map> <utility> <variant>
@@ -45,10 +43,13 @@ function(rtslam_pch_apply)
     file(CONFIGURE OUTPUT ${source} CONTENT "// Compiles the precompiled header of rtslam's ${kind} targets.\n")
     add_library(${holder} OBJECT ${source})
     target_link_libraries(${holder} PRIVATE rtslam_options Eigen3::Eigen fmt::fmt spdlog::spdlog yaml-cpp
-                                            ${OpenCV_LIBS})
+                                            nlohmann_json::nlohmann_json ${OpenCV_LIBS})
     set(headers ${RTSLAM_PCH_HEADERS})
     if(kind STREQUAL "module")
       rtslam_module_settings(${holder})
+      if(BUILD_SHARED_LIBS)  # the modules are then shared libraries, compiled as position-independent code
+        set_target_properties(${holder} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+      endif()
     else()
       target_link_libraries(${holder} PRIVATE GTest::gtest)
       rtslam_test_settings(${holder})
@@ -74,7 +75,8 @@ function(rtslam_pch_apply)
         endif()
         get_source_file_property(src_options ${src} DIRECTORY ${dir} COMPILE_OPTIONS)
         get_source_file_property(src_flags ${src} DIRECTORY ${dir} COMPILE_FLAGS)
-        if(src_options OR src_flags)
+        get_source_file_property(src_defs ${src} DIRECTORY ${dir} COMPILE_DEFINITIONS)
+        if(src_options OR src_flags OR src_defs)
           set_source_files_properties(${src} DIRECTORY ${dir} PROPERTIES SKIP_PRECOMPILE_HEADERS ON)
         endif()
       endforeach()
@@ -82,15 +84,29 @@ function(rtslam_pch_apply)
   endforeach()
 endfunction()
 
-# OUT: a target's own compile options and position-independence, as one string ("" parts when unset).
+# OUT: what of a target's own settings a precompiled header depends on, as one string: its compile options and its
+# position-independence (shared libraries are by default). The language standard is every target's cxx_std_20 (from
+# rtslam_options; a mismatch would be a hard error of clang's, not a silent one). Its own compile definitions are left
+# out: those of our targets (RTSLAM_SOURCE_DIR, RTSLAM_CLI...) are read by no system header; a definition that
+# changes a library's headers belongs on that library's target (and so on the holder's).
 function(_rtslam_pch_options target out)
-  get_target_property(options ${target} COMPILE_OPTIONS)
-  get_target_property(pic ${target} POSITION_INDEPENDENT_CODE)
-  if(NOT options)
-    set(options "")
-  endif()
-  if(NOT pic)
-    set(pic "")
-  endif()
-  set(${out} "${options}|${pic}" PARENT_SCOPE)
+  get_target_property(type ${target} TYPE)
+  set(key "")
+  foreach(property COMPILE_OPTIONS POSITION_INDEPENDENT_CODE)
+    get_target_property(value ${target} ${property})
+    if(value MATCHES "-NOTFOUND$")  # unset
+      set(value "")
+      if(property STREQUAL "POSITION_INDEPENDENT_CODE" AND type MATCHES "^(SHARED|MODULE)_LIBRARY$")
+        set(value ON)
+      endif()
+    elseif(property STREQUAL "POSITION_INDEPENDENT_CODE")  # a boolean: ON, True, 1...
+      if(value)
+        set(value ON)
+      else()
+        set(value "")
+      endif()
+    endif()
+    string(APPEND key "${value}|")
+  endforeach()
+  set(${out} "${key}" PARENT_SCOPE)
 endfunction()

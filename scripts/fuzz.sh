@@ -45,10 +45,9 @@ if [[ -n "${FUZZ_BUILD:-}" ]]; then
   rm -rf "$TMPDIR" && mkdir -p "$TMPDIR" "$out/logs"
 else
   bash scripts/deps.sh clang libfuzzer-14-dev libclang-rt-14-dev
-  launcher=()
-  if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
+  # ccache when installed comes from CMakeLists.txt (RTSLAM_CCACHE), with the settings the precompiled headers need.
   cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
-    -DCMAKE_CXX_COMPILER=clang++ "${launcher[@]}" -DRTSLAM_FUZZ=ON -DRTSLAM_ONLY_MODULES="core;io" \
+    -DCMAKE_CXX_COMPILER=clang++ -DRTSLAM_FUZZ=ON -DRTSLAM_ONLY_MODULES="core;io" \
     -DRTSLAM_BUILD_TESTS=OFF -DRTSLAM_BUILD_BENCH=OFF >/dev/null
   cmake --build build-fuzz -j "$(nproc)"
   out=$root/build-fuzz

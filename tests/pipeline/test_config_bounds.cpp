@@ -95,6 +95,42 @@ TEST(OdometryOptions, KeysAreReadWrittenAndBounded) {
             std::string::npos);
 }
 
+TEST(PlanarMotionOptions, KeysAreReadWrittenBoundedAndRefusedWithTheConstrainedFilter) {
+  ImageSlamOptions o;
+  apply_image_slam_config(
+      YAML::Load("planar_motion: {enabled: true, up: [1, 0, 0], height_std: 0.05, tilt_std: 0.03}"), "test.yaml", o);
+  EXPECT_TRUE(o.planar_motion.enabled);
+  EXPECT_EQ(o.planar_motion.up, Eigen::Vector3d::UnitX());
+  ImageSlamOptions back;
+  apply_image_slam_config(to_yaml(o), "dump", back);
+  EXPECT_TRUE(back.planar_motion.enabled);
+  EXPECT_EQ(back.planar_motion.up, Eigen::Vector3d::UnitX());
+  EXPECT_EQ(back.planar_motion.height_std, 0.05);
+  EXPECT_EQ(back.planar_motion.tilt_std, 0.03);
+  ImageSlamOptions fresh;
+  EXPECT_EQ(error_of([&] { apply_image_slam_config(YAML::Load("planar_motion: {tilt_std: 2}"), "test.yaml", fresh); }),
+            "test.yaml: planar_motion: tilt_std = 2 must be in (0, 1] rad");
+  ImageSlamOptions oc;
+  EXPECT_NE(error_of([&] {
+              apply_image_slam_config(YAML::Load("slam: {consistency: oc}\nplanar_motion: {enabled: true}"),
+                                      "test.yaml", oc);
+            }).find("planar_motion with slam/consistency = oc"),
+            std::string::npos);
+  ImageSlamOptions gps;
+  EXPECT_NE(error_of([&] {
+              apply_image_slam_config(YAML::Load("position_sensor: {enabled: true}\nplanar_motion: {enabled: true}"),
+                                      "test.yaml", gps);
+            }).find("planar_motion with position_sensor/world = align"),
+            std::string::npos);
+  ImageSlamOptions gps_start;
+  EXPECT_EQ(error_of([&] {
+              apply_image_slam_config(
+                  YAML::Load("position_sensor: {enabled: true, world: start}\nplanar_motion: {enabled: true}"),
+                  "test.yaml", gps_start);
+            }),
+            "(no error)");
+}
+
 TEST(OdometryOptions, RescaleOnWithAnAbsoluteSensorIsRefused) {
   // The absolute sensor gives the map's scale: keeping it at the odometry's would fight it.
   ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/sim_mono.yaml");

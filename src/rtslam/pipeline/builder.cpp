@@ -13,6 +13,7 @@
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
+#include "rtslam/strategies/planar_motion.hpp"
 #include "rtslam/strategies/zero_velocity.hpp"
 
 namespace rtslam::pipeline {
@@ -181,6 +182,7 @@ BuiltSystem Registry::build(const BuildContext& c) const {
 
   add_robot_to(b, c);
   if (o.zero_velocity.enabled) b.system->add_hook(std::make_unique<strategies::ZeroVelocityUpdater>(o.zero_velocity));
+  if (o.planar_motion.enabled) b.system->add_hook(std::make_unique<strategies::PlanarMotionUpdater>(o.planar_motion));
   return b;
 }
 

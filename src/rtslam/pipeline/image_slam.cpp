@@ -73,6 +73,11 @@ void ImageSlamOptions::validate() const {
   map.validate();
   health.validate();
   zero_velocity.validate();
+  planar_motion.validate();
+  if (planar_motion.enabled && consistency == "oc") {
+    throw ConfigError("planar_motion with slam/consistency = oc: the constrained filter keeps the world's tilt and "
+                      "height unobservable, which the plane measures; use consistency none or fej");
+  }
   time_offset.validate();
   if (time_offset.estimate && robot != "inertial") {
     throw ConfigError(fmt::format("camera/time_offset/estimate needs slam/robot = inertial (a camera's time offset is "
@@ -87,6 +92,10 @@ void ImageSlamOptions::validate() const {
     if (!known_landmarks.empty() && a->world == "align") {
       throw ConfigError(fmt::format("{}/world = align cannot move a map whose frame slam/known_landmarks defines",
                                     name));
+    }
+    if (planar_motion.enabled && a->world == "align") {
+      throw ConfigError(fmt::format("planar_motion with {}/world = align: the alignment moves the world frame the "
+                                    "plane is held in; give the frame (world = start) or turn one off", name));
     }
   }
   if (position_sensor.enabled && position_sensor.world == "align" && robot != "inertial") {
@@ -140,6 +149,7 @@ void apply_image_slam_config(const YAML::Node& root, const std::string& where, I
   read_map_policy(top.child("map_manager"), o.map);
   slam::read_health(top.child("health"), o.health);
   strategies::read_zero_velocity(top.child("zero_velocity"), o.zero_velocity);
+  strategies::read_planar_motion(top.child("planar_motion"), o.planar_motion);
   if (top.has("position_sensor")) strategies::read_absolute_sensor(top.child("position_sensor"), o.position_sensor, false);
   if (top.has("pose_sensor")) strategies::read_absolute_sensor(top.child("pose_sensor"), o.pose_sensor, true);
   {
@@ -193,6 +203,7 @@ YAML::Node to_yaml(const ImageSlamOptions& o) {
   root["map_manager"] = map_policy_to_yaml(o.map);
   root["health"] = slam::health_to_yaml(o.health);
   root["zero_velocity"] = strategies::zero_velocity_to_yaml(o.zero_velocity);
+  root["planar_motion"] = strategies::planar_motion_to_yaml(o.planar_motion);
   root["camera"]["time_offset"] = slam::time_offset_to_yaml(o.time_offset);
   root["position_sensor"] = strategies::absolute_sensor_to_yaml(o.position_sensor, false);
   root["pose_sensor"] = strategies::absolute_sensor_to_yaml(o.pose_sensor, true);

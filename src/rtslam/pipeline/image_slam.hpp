@@ -25,6 +25,7 @@
 //                 min_match_ratio, min_inlier_ratio, forget_after_frames, forget_unseen_after_frames}
 //   health:      see slam/health.hpp               (divergence and lost-tracking detection, recovery)
 //   zero_velocity: see strategies/zero_velocity.hpp (updates v = 0 when the IMU and the images say "at rest")
+//   planar_motion: see strategies/planar_motion.hpp (a wheeled robot's height and tilt held on its floor's plane)
 //   position_sensor, pose_sensor: see strategies/absolute.hpp (GPS-like position, motion-capture pose)
 //   camera:      {time_offset: see slam/time_offset.hpp}  (online camera–IMU time offset, inertial robot)
 //   simulation:  {preset, duration, camera_time_offset_ms}   (only for runs on the simulator: `rtslam run` without
@@ -54,6 +55,7 @@
 #include "rtslam/strategies/active_search.hpp"
 #include "rtslam/strategies/known_association.hpp"
 #include "rtslam/strategies/map_policies.hpp"
+#include "rtslam/strategies/planar_motion.hpp"
 #include "rtslam/strategies/zero_velocity.hpp"
 
 namespace rtslam::pipeline {
@@ -99,6 +101,7 @@ struct ImageSlamOptions {
   strategies::MapPolicyOptions map;
   slam::HealthOptions health;
   strategies::ZeroVelocityOptions zero_velocity;  // zero-velocity updates at rest (strategies/zero_velocity.hpp)
+  strategies::PlanarMotionOptions planar_motion;  // a ground robot held on its plane (strategies/planar_motion.hpp)
   slam::TimeOffsetOptions time_offset;  // camera/time_offset: each camera's t_d estimated online (slam/time_offset.hpp)
   // Absolute sensors on the robot (strategies/absolute.hpp): a GPS-like antenna position, a motion-capture pose.
   strategies::AbsoluteSensorOptions position_sensor;

@@ -1,0 +1,71 @@
+#pragma once
+// Planar motion (`planar_motion`): a robot that drives on a flat floor keeps its height and its up axis. Told so
+// after every image — a pseudo-measurement of the robot's height above the plane it started on and of the tilt of
+// its up axis off the plane's normal, both 0 with a std that stands for the floor's unevenness — the filter holds
+// the two tilt angles and the height that nothing else measures when a wheeled robot has one camera and wheel
+// odometry and no IMU (no gravity reference: only the start pose and the first landmarks' correlations hold them;
+// docs/odometry-scale.md, the ground preset's attitude failures). The planar-motion constraint of wheeled VIO
+// (Wu et al., "VINS on wheels", ICRA 2017) as a per-image EKF update.
+//
+// The plane is the one the robot is on at its first image: normal n = R_WR · up (up: the robot-frame axis normal
+// to the floor, `up`), through its position p then. With t₁, t₂ an orthonormal basis of the plane,
+//   h(x) = [ nᵀ(p − p₀),  t₁ᵀ R_WR up,  t₂ᵀ R_WR up ] = 0,   R = diag(height_std², tilt_std², tilt_std²),
+// and, for the right perturbation R_WR ← R_WR Exp(δθ) (MATH.md), ∂(tᵢᵀ R up)/∂δθ = −tᵢᵀ R_WR [up]×.
+// Any robot whose block starts with [p q] (all of rtslam's) can use it. The plane stays through the health monitor's
+// re-initializations (they keep the world frame) and through the odometry robot's rescales (about the start, which
+// is on the plane). Not with the observability-constrained filter (slam/consistency: oc), whose basis keeps the
+// world's tilt and height unobservable, which this measures, nor with an absolute sensor that aligns (moves) the
+// world frame (ImageSlamOptions::validate refuses both).
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rtslam/core/yaml.hpp"
+#include "rtslam/slam/system.hpp"
+
+namespace rtslam::strategies {
+
+struct PlanarMotionOptions {
+  bool enabled = false;
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  // robot-frame axis normal to the floor (normalized on use)
+  double height_std = 0.02;                       // m: the floor's unevenness and the suspension's travel
+  double tilt_std = 0.02;                         // rad (~1.1°): the robot's pitch and roll on that floor
+  /// ConfigError naming the key (planar_motion/up, height_std, tilt_std) out of range.
+  void validate() const;
+};
+
+/// planar_motion: {enabled, up: [x, y, z], height_std, tilt_std}.
+void read_planar_motion(YamlMap section, PlanarMotionOptions& o);
+YAML::Node planar_motion_to_yaml(const PlanarMotionOptions& o);
+
+/// The measurement's value and Jacobian for one robot pose against one plane (normal n, unit; through p0).
+/// h (3) as in the file comment; H (3 × 6) over the robot's [δp δθ] tangent columns.
+void planar_motion_measurement(const Eigen::Vector3d& p, const Eigen::Matrix3d& R_WR, const Eigen::Vector3d& up,
+                               const Eigen::Vector3d& n, const Eigen::Vector3d& p0, Eigen::Vector3d& h,
+                               Eigen::Matrix<double, 3, 6>& H);
+
+class PlanarMotionUpdater final : public slam::StepHook {
+ public:
+  explicit PlanarMotionUpdater(PlanarMotionOptions options);
+  void after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor, const slam::RawData& raw,
+                  const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats) override;
+  long updates() const { return updates_; }
+  long refused() const { return refused_; }
+  /// The plane of robot `robot_id` (its normal and a point on it, world frame), once its first image is past.
+  struct Plane {
+    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d p0 = Eigen::Vector3d::Zero();
+  };
+  std::optional<Plane> plane(int robot_id) const;
+
+ private:
+  PlanarMotionOptions o_;
+  Eigen::Vector3d up_;
+  std::vector<std::optional<Plane>> planes_;  // per robot id
+  Eigen::MatrixXd H_, R_;
+  Eigen::VectorXd y_;
+  long updates_ = 0, refused_ = 0;
+};
+
+}  // namespace rtslam::strategies

@@ -1,0 +1,188 @@
+// The planar-motion pseudo-measurement (strategies/planar_motion.hpp): its Jacobian against numerical
+// differentiation, one update against the closed-form Kalman result, and its options.
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/random.hpp"
+#include "rtslam/math/rotation.hpp"
+#include "rtslam/slam/map.hpp"
+#include "rtslam/slam/robot.hpp"
+#include "rtslam/slam/sensor.hpp"
+#include "rtslam/strategies/planar_motion.hpp"
+
+namespace rtslam::strategies {
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+TEST(PlanarMotion, JacobianMatchesNumericalDifferentiation) {
+  Rng rng(7);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const auto gauss3 = [&] { return Vector3d(g(rng), g(rng), g(rng)); };
+  for (int trial = 0; trial < 20; ++trial) {
+    const Vector3d p = gauss3();
+    const Eigen::Quaterniond q = math::exp_so3(gauss3());
+    const Vector3d up = gauss3().normalized();
+    const Vector3d n = gauss3().normalized();  // the x axis as the normal too (the basis's other branch)
+    const Vector3d n_used = trial % 5 == 0 ? Vector3d::UnitX() : n;
+    const Vector3d p0 = gauss3();
+    Vector3d h;
+    Eigen::Matrix<double, 3, 6> H;
+    planar_motion_measurement(p, q.toRotationMatrix(), up, n_used, p0, h, H);
+    Eigen::Matrix<double, 3, 6> Hn;
+    constexpr double eps = 1e-6;
+    for (int k = 0; k < 6; ++k) {
+      Vector3d d = Vector3d::Zero();
+      d[k % 3] = eps;
+      Vector3d hp, hm;
+      Eigen::Matrix<double, 3, 6> unused;
+      if (k < 3) {
+        planar_motion_measurement(p + d, q.toRotationMatrix(), up, n_used, p0, hp, unused);
+        planar_motion_measurement(p - d, q.toRotationMatrix(), up, n_used, p0, hm, unused);
+      } else {  // right perturbation: q ⊗ Exp(δθ)
+        planar_motion_measurement(p, (q * math::exp_so3(d)).toRotationMatrix(), up, n_used, p0, hp, unused);
+        planar_motion_measurement(p, (q * math::exp_so3(-d)).toRotationMatrix(), up, n_used, p0, hm, unused);
+      }
+      Hn.col(k) = (hp - hm) / (2.0 * eps);
+    }
+    EXPECT_LT((H - Hn).cwiseAbs().maxCoeff(), 1e-8) << "trial " << trial << "\nH\n" << H << "\nnumerical\n" << Hn;
+    // On the plane and upright, h = 0.
+    planar_motion_measurement(p0, q.toRotationMatrix(), up, (q * up).normalized(), p0, h, H);
+    EXPECT_LT(h.norm(), 1e-12);
+  }
+}
+
+// A constant-velocity robot (tangent [δp δθ v ω]) whose mean and covariance the test sets.
+struct OneRobot {
+  slam::World world;
+  slam::Map* map = nullptr;
+  slam::Robot* robot = nullptr;
+  OneRobot() {
+    map = &world.add_map();
+    Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
+    x0[3] = 1.0;  // q = identity (w x y z)
+    robot = &map->add_robot(std::make_unique<slam::ConstantVelocityRobot>(models::ConstantVelocityParams{}), x0,
+                            Eigen::MatrixXd::Zero(12, 12), 0);
+  }
+  void set(const Vector3d& p, const Eigen::Quaterniond& q, double var_p, double var_theta) {
+    auto x = map->state().mean(robot->block());
+    x.head<3>() = p;
+    x.segment<4>(3) = math::quat_to_wxyz(q);
+    auto P = map->state().cov(robot->block(), robot->block());
+    P.setZero();
+    P.diagonal().head<3>().setConstant(var_p);
+    P.diagonal().segment<3>(3).setConstant(var_theta);
+    P.diagonal().tail<6>().setConstant(0.1);
+  }
+};
+
+slam::RawData dummy_raw() {
+  slam::RawData raw;
+  raw.t = 0;
+  return raw;
+}
+
+// The hook does not look at the sensor; after_step still takes one.
+slam::PinholeSensor some_camera() {
+  models::CameraIntrinsics c;
+  c.width = 640;
+  c.height = 480;
+  c.fx = c.fy = 400.0;
+  c.cx = 320.0;
+  c.cy = 240.0;
+  return slam::PinholeSensor("cam0", c, math::Pose{});
+}
+
+TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateIsTheClosedFormKalmanStep) {
+  OneRobot r;
+  PlanarMotionOptions o;
+  o.enabled = true;
+  o.height_std = 0.03;
+  o.tilt_std = 0.01;
+  PlanarMotionUpdater u(o);
+  RingBuffer<slam::ImuData> no_inputs{4};
+  slam::FrameStats stats;
+  const slam::RawData raw = dummy_raw();
+  const slam::PinholeSensor cam = some_camera();
+  // The first image: the plane through the start (the origin), normal the robot's z axis; nothing corrected.
+  u.after_step(*r.map, *r.robot, cam, raw, no_inputs, stats);
+  ASSERT_TRUE(u.plane(r.robot->id()).has_value());
+  EXPECT_LT((u.plane(r.robot->id())->n - Vector3d::UnitZ()).norm(), 1e-12);
+  EXPECT_EQ(u.updates(), 0);
+
+  // Raised by dz and rolled by δ about x, with independent variances: each row is a scalar Kalman step.
+  const double dz = 0.2, delta = 0.15, var_p = 0.04, var_t = 0.09;
+  r.set(Vector3d(0.5, -0.3, dz), math::exp_so3(Vector3d(delta, 0.0, 0.0)), var_p, var_t);
+  u.after_step(*r.map, *r.robot, cam, raw, no_inputs, stats);
+  EXPECT_EQ(u.updates(), 1);
+  const math::Pose T = r.robot->pose();
+  const double rh = o.height_std * o.height_std, rt = o.tilt_std * o.tilt_std;
+  // Height: z ← dz − var_p/(var_p + r_h) dz, variance var_p r_h / (var_p + r_h); x and y untouched.
+  EXPECT_NEAR(T.p.z(), dz * rh / (var_p + rh), 1e-12);
+  EXPECT_NEAR(T.p.x(), 0.5, 1e-12);
+  EXPECT_NEAR(T.p.y(), -0.3, 1e-12);
+  const auto P = r.map->state().cov(r.robot->block(), r.robot->block());
+  EXPECT_NEAR(P(2, 2), var_p * rh / (var_p + rh), 1e-12);
+  // Roll: the up axis's tilt is −sin δ along the plane's second direction, with slope −cos δ in δθx, so
+  // δ ← δ − var_t cos δ sin δ / (cos²δ var_t + r_t) (the same axis: the angles add); pitch and yaw stay 0.
+  const double c = std::cos(delta), s = std::sin(delta);
+  const Vector3d theta = math::log_so3(T.q);
+  EXPECT_NEAR(theta.x(), delta - var_t * c * s / (c * c * var_t + rt), 1e-12);
+  EXPECT_NEAR(theta.y(), 0.0, 1e-12);
+  EXPECT_NEAR(theta.z(), 0.0, 1e-12);
+  EXPECT_NEAR(P(3, 3), var_t * rt / (c * c * var_t + rt), 1e-12);
+  EXPECT_NEAR(P(4, 4), var_t * rt / (var_t + rt), 1e-12);  // pitch: measured with slope 1 at h = 0
+  EXPECT_NEAR(P(5, 5), var_t, 1e-12);                      // yaw: the plane says nothing of it
+}
+
+TEST(PlanarMotion, DisabledDoesNothing) {
+  OneRobot r;
+  PlanarMotionUpdater u(PlanarMotionOptions{});
+  RingBuffer<slam::ImuData> no_inputs{4};
+  slam::FrameStats stats;
+  const slam::PinholeSensor cam = some_camera();
+  u.after_step(*r.map, *r.robot, cam, dummy_raw(), no_inputs, stats);
+  r.set(Vector3d(0.0, 0.0, 1.0), Eigen::Quaterniond::Identity(), 0.04, 0.09);
+  u.after_step(*r.map, *r.robot, cam, dummy_raw(), no_inputs, stats);
+  EXPECT_FALSE(u.plane(r.robot->id()).has_value());
+  EXPECT_EQ(r.robot->pose().p.z(), 1.0);
+}
+
+TEST(PlanarMotionOptions, BadValuesAndUnknownKeysAreErrorsNamingTheKey) {
+  const auto error_of = [](const std::string& yaml) -> std::string {
+    try {
+      PlanarMotionOptions o;
+      read_planar_motion(YamlMap(YAML::Load(yaml), "cfg.yaml"), o);
+      o.validate();
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(error_of("{up: [0, 0, 0]}").find("up"), std::string::npos);
+  EXPECT_NE(error_of("{up: [0, .nan, 1]}").find("up"), std::string::npos);
+  EXPECT_NE(error_of("{height_std: 0}").find("height_std"), std::string::npos);
+  EXPECT_NE(error_of("{tilt_std: -1}").find("tilt_std"), std::string::npos);
+  EXPECT_NE(error_of("{tilt: 0.1}").find("tilt"), std::string::npos);
+  EXPECT_EQ(error_of("{enabled: true, up: [1, 0, 0], height_std: 0.05, tilt_std: 0.03}"), "");
+  // What the configuration dump writes reads back the same.
+  PlanarMotionOptions a;
+  a.enabled = true;
+  a.up = Vector3d(1.0, 0.0, 0.0);
+  a.height_std = 0.05;
+  PlanarMotionOptions b;
+  read_planar_motion(YamlMap(planar_motion_to_yaml(a), "dump.yaml"), b);
+  EXPECT_EQ(b.enabled, true);
+  EXPECT_EQ(b.up, a.up);
+  EXPECT_EQ(b.height_std, 0.05);
+  EXPECT_EQ(b.tilt_std, a.tilt_std);
+}
+
+}  // namespace
+}  // namespace rtslam::strategies

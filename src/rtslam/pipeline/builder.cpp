@@ -93,6 +93,12 @@ Registry Registry::builtin() {
               "slam/robot: odometry with one camera and odometry/rescale off: the map's scale, and with it the "
               "trajectory, can come out worse than the odometry alone (docs/configuration.md section odometry)");
         }
+        if (c.options.camera_indices().size() == 1 && !c.options.pose_sensor.enabled &&
+            !c.options.planar_motion.enabled) {
+          logger("slam")->info(
+              "slam/robot: odometry with one camera: nothing measures the robot's tilt (no gravity reference); on a "
+              "flat floor planar_motion holds it (docs/configuration.md section planar_motion)");
+        }
         return std::make_unique<slam::OdometryRobot>(c.options.odometry, "robot", scale);
       },
       [](const BuildContext& c, const BuiltSystem&) -> std::unique_ptr<slam::RobotStarter> {

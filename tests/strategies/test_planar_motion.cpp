@@ -82,9 +82,9 @@ struct OneRobot {
   }
 };
 
-slam::RawData dummy_raw() {
+slam::RawData raw_at(TimeNs t) {
   slam::RawData raw;
-  raw.t = 0;
+  raw.t = t;
   return raw;
 }
 
@@ -99,7 +99,7 @@ slam::PinholeSensor some_camera() {
   return slam::PinholeSensor("cam0", c, math::Pose{});
 }
 
-TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateIsTheClosedFormKalmanStep) {
+TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateATimeIsTheClosedFormKalmanStep) {
   OneRobot r;
   PlanarMotionOptions o;
   o.enabled = true;
@@ -108,10 +108,9 @@ TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateIsTheClosedFormKalmanSt
   PlanarMotionUpdater u(o);
   RingBuffer<slam::ImuData> no_inputs{4};
   slam::FrameStats stats;
-  const slam::RawData raw = dummy_raw();
   const slam::PinholeSensor cam = some_camera();
   // The first image: the plane through the start (the origin), normal the robot's z axis; nothing corrected.
-  u.after_step(*r.map, *r.robot, cam, raw, no_inputs, stats);
+  u.after_step(*r.map, *r.robot, cam, raw_at(0), no_inputs, stats);
   ASSERT_TRUE(u.plane(r.robot->id()).has_value());
   EXPECT_LT((u.plane(r.robot->id())->n - Vector3d::UnitZ()).norm(), 1e-12);
   EXPECT_EQ(u.updates(), 0);
@@ -119,8 +118,13 @@ TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateIsTheClosedFormKalmanSt
   // Raised by dz and rolled by δ about x, with independent variances: each row is a scalar Kalman step.
   const double dz = 0.2, delta = 0.15, var_p = 0.04, var_t = 0.09;
   r.set(Vector3d(0.5, -0.3, dz), math::exp_so3(Vector3d(delta, 0.0, 0.0)), var_p, var_t);
-  u.after_step(*r.map, *r.robot, cam, raw, no_inputs, stats);
+  u.after_step(*r.map, *r.robot, cam, raw_at(50'000'000), no_inputs, stats);
   EXPECT_EQ(u.updates(), 1);
+  // The same time's second image (a stereo pair): the robot was told already.
+  const math::Pose once = r.robot->pose();
+  u.after_step(*r.map, *r.robot, cam, raw_at(50'000'000), no_inputs, stats);
+  EXPECT_EQ(u.updates(), 1);
+  EXPECT_EQ(r.robot->pose().p, once.p);
   const math::Pose T = r.robot->pose();
   const double rh = o.height_std * o.height_std, rt = o.tilt_std * o.tilt_std;
   // Height: z ← dz − var_p/(var_p + r_h) dz, variance var_p r_h / (var_p + r_h); x and y untouched.
@@ -147,9 +151,9 @@ TEST(PlanarMotion, DisabledDoesNothing) {
   RingBuffer<slam::ImuData> no_inputs{4};
   slam::FrameStats stats;
   const slam::PinholeSensor cam = some_camera();
-  u.after_step(*r.map, *r.robot, cam, dummy_raw(), no_inputs, stats);
+  u.after_step(*r.map, *r.robot, cam, raw_at(0), no_inputs, stats);
   r.set(Vector3d(0.0, 0.0, 1.0), Eigen::Quaterniond::Identity(), 0.04, 0.09);
-  u.after_step(*r.map, *r.robot, cam, dummy_raw(), no_inputs, stats);
+  u.after_step(*r.map, *r.robot, cam, raw_at(50'000'000), no_inputs, stats);
   EXPECT_FALSE(u.plane(r.robot->id()).has_value());
   EXPECT_EQ(r.robot->pose().p.z(), 1.0);
 }

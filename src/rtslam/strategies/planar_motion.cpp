@@ -1,6 +1,7 @@
 #include "rtslam/strategies/planar_motion.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -78,11 +79,16 @@ std::optional<PlanarMotionUpdater::Plane> PlanarMotionUpdater::plane(int robot_i
 }
 
 void PlanarMotionUpdater::after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& /*sensor*/,
-                                     const slam::RawData& /*raw*/, const RingBuffer<slam::ImuData>& /*inputs*/,
+                                     const slam::RawData& raw, const RingBuffer<slam::ImuData>& /*inputs*/,
                                      slam::FrameStats& /*stats*/) {
   if (!o_.enabled) return;
   const auto id = static_cast<std::size_t>(robot.id());
-  if (planes_.size() <= id) planes_.resize(id + 1);
+  if (planes_.size() <= id) {
+    planes_.resize(id + 1);
+    last_t_.resize(id + 1, std::numeric_limits<TimeNs>::min());
+  }
+  if (raw.t == last_t_[id]) return;  // this time's images already told it
+  last_t_[id] = raw.t;
   const math::Pose T = robot.pose();
   if (!planes_[id]) {  // the first image: the plane the robot is on
     planes_[id] = Plane{(T.q * up_).normalized(), T.p};

@@ -63,6 +63,8 @@ class PlanarMotionUpdater final : public slam::StepHook {
   PlanarMotionOptions o_;
   Eigen::Vector3d up_;
   std::vector<std::optional<Plane>> planes_;  // per robot id
+  std::vector<TimeNs> last_t_;                // per robot id: the time of its latest update (one per time: a
+                                              // stereo pair's two images are two steps of one time)
   Eigen::MatrixXd H_, R_;
   Eigen::VectorXd y_;
   long updates_ = 0, refused_ = 0;

@@ -1,6 +1,7 @@
 // planar_motion on the simulator's ground robot (one camera + wheel odometry, no IMU): the sequence whose attitude
-// the filter loses unnoticed without it (seed 16: a 6.9° tilt 3-5 s into the run, docs/odometry-scale.md) keeps
-// its up axis with it. The floor of the `ground` preset is flat, the robot frame's x axis is up.
+// the filter loses unnoticed without it (seed 16: its up axis turns by 7.3° 3-5 s into the run,
+// docs/odometry-scale.md) keeps its up axis with it. The floor of the `ground` preset is flat, the robot frame's x
+// axis is up.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

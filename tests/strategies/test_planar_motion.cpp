@@ -10,6 +10,7 @@
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/math/rotation.hpp"
+#include "rtslam/slam/absolute_sensor.hpp"
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/robot.hpp"
 #include "rtslam/slam/sensor.hpp"
@@ -105,14 +106,15 @@ TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateATimeIsTheClosedFormKal
   o.enabled = true;
   o.height_std = 0.03;
   o.tilt_std = 0.01;
-  PlanarMotionUpdater u(o);
+  PlanarMotionUpdater u;
+  u.add_robot(*r.robot, o);
   RingBuffer<slam::ImuData> no_inputs{4};
   slam::FrameStats stats;
   const slam::PinholeSensor cam = some_camera();
   // The first image: the plane through the start (the origin), normal the robot's z axis; nothing corrected.
   u.after_step(*r.map, *r.robot, cam, raw_at(0), no_inputs, stats);
-  ASSERT_TRUE(u.plane(r.robot->id()).has_value());
-  EXPECT_LT((u.plane(r.robot->id())->n - Vector3d::UnitZ()).norm(), 1e-12);
+  ASSERT_TRUE(u.plane(*r.robot).has_value());
+  EXPECT_LT((u.plane(*r.robot)->n - Vector3d::UnitZ()).norm(), 1e-12);
   EXPECT_EQ(u.updates(), 0);
 
   // Raised by dz and rolled by δ about x, with independent variances: each row is a scalar Kalman step.
@@ -145,17 +147,26 @@ TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateATimeIsTheClosedFormKal
   EXPECT_NEAR(P(5, 5), var_t, 1e-12);                      // yaw: the plane says nothing of it
 }
 
-TEST(PlanarMotion, DisabledDoesNothing) {
-  OneRobot r;
-  PlanarMotionUpdater u(PlanarMotionOptions{});
+TEST(PlanarMotion, OnlyTheRobotsAddedAndOnlyAfterImages) {
+  OneRobot held, other;
+  PlanarMotionUpdater u;
+  u.add_robot(*held.robot, PlanarMotionOptions{});
   RingBuffer<slam::ImuData> no_inputs{4};
   slam::FrameStats stats;
   const slam::PinholeSensor cam = some_camera();
-  u.after_step(*r.map, *r.robot, cam, raw_at(0), no_inputs, stats);
-  r.set(Vector3d(0.0, 0.0, 1.0), Eigen::Quaterniond::Identity(), 0.04, 0.09);
-  u.after_step(*r.map, *r.robot, cam, raw_at(50'000'000), no_inputs, stats);
-  EXPECT_FALSE(u.plane(r.robot->id()).has_value());
-  EXPECT_EQ(r.robot->pose().p.z(), 1.0);
+  const slam::AbsoluteSensor gps("gps", slam::AbsoluteSensor::Kind::Position, math::Pose{});
+  for (OneRobot* r : {&held, &other}) u.after_step(*r->map, *r->robot, cam, raw_at(0), no_inputs, stats);
+  EXPECT_TRUE(u.plane(*held.robot).has_value());
+  EXPECT_FALSE(u.plane(*other.robot).has_value());  // not added: left alone
+  held.set(Vector3d(0.0, 0.0, 1.0), Eigen::Quaterniond::Identity(), 0.04, 0.09);
+  other.set(Vector3d(0.0, 0.0, 1.0), Eigen::Quaterniond::Identity(), 0.04, 0.09);
+  // An absolute fix's step is not an image: nothing.
+  u.after_step(*held.map, *held.robot, gps, raw_at(25'000'000), no_inputs, stats);
+  EXPECT_EQ(held.robot->pose().p.z(), 1.0);
+  for (OneRobot* r : {&held, &other}) u.after_step(*r->map, *r->robot, cam, raw_at(50'000'000), no_inputs, stats);
+  EXPECT_LT(held.robot->pose().p.z(), 1.0);
+  EXPECT_EQ(other.robot->pose().p.z(), 1.0);
+  EXPECT_EQ(u.updates(), 1);
 }
 
 TEST(PlanarMotionOptions, BadValuesAndUnknownKeysAreErrorsNamingTheKey) {

@@ -188,7 +188,6 @@ BuiltSystem Registry::build(const BuildContext& c) const {
 
   add_robot_to(b, c);
   if (o.zero_velocity.enabled) b.system->add_hook(std::make_unique<strategies::ZeroVelocityUpdater>(o.zero_velocity));
-  if (o.planar_motion.enabled) b.system->add_hook(std::make_unique<strategies::PlanarMotionUpdater>(o.planar_motion));
   return b;
 }
 
@@ -269,6 +268,14 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
   std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, target);
   target.starter = starter.get();
   target.input_id = b.system->add_robot(std::move(robot), std::move(starter));
+  if (o.planar_motion.enabled) {  // one hook for the system, each robot with its own options
+    if (b.planar_motion == nullptr) {
+      auto hook = std::make_unique<strategies::PlanarMotionUpdater>();
+      b.planar_motion = hook.get();
+      b.system->add_hook(std::move(hook));
+    }
+    b.planar_motion->add_robot(*target.robot, o.planar_motion);
+  }
   b.robots.push_back(BuiltRobot{target.robot, target.starter, target.input_id, target.cameras, target.position_sensor,
                               target.pose_sensor});
   return b.robots.back();

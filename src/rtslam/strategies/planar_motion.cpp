@@ -1,7 +1,7 @@
 #include "rtslam/strategies/planar_motion.hpp"
 
+#include <algorithm>
 #include <cmath>
-#include <limits>
 
 #include <fmt/format.h>
 
@@ -65,53 +65,64 @@ void planar_motion_measurement(const Eigen::Vector3d& p, const Eigen::Matrix3d& 
   H.block<1, 3>(2, 3) = -t2.transpose() * R_up;
 }
 
-PlanarMotionUpdater::PlanarMotionUpdater(PlanarMotionOptions options) : o_(std::move(options)) {
-  o_.validate();
-  up_ = o_.up.normalized();
-  R_ =
-      Eigen::Vector3d(o_.height_std * o_.height_std, o_.tilt_std * o_.tilt_std, o_.tilt_std * o_.tilt_std).asDiagonal();
-  y_.resize(3);
+void PlanarMotionUpdater::add_robot(const slam::Robot& robot, const PlanarMotionOptions& options) {
+  options.validate();
+  Held h;
+  h.robot = &robot;
+  h.options = options;
+  h.up = options.up.normalized();
+  const int n = robot.layout().tangent_size();
+  h.H = Eigen::MatrixXd::Zero(3, n);
+  h.R = Eigen::Vector3d(options.height_std * options.height_std, options.tilt_std * options.tilt_std,
+                        options.tilt_std * options.tilt_std)
+            .asDiagonal();
+  h.y = Eigen::VectorXd::Zero(3);
+  held_.push_back(std::move(h));
 }
 
-std::optional<PlanarMotionUpdater::Plane> PlanarMotionUpdater::plane(int robot_id) const {
-  if (robot_id < 0 || static_cast<std::size_t>(robot_id) >= planes_.size()) return std::nullopt;
-  return planes_[static_cast<std::size_t>(robot_id)];
+std::optional<PlanarMotionUpdater::Plane> PlanarMotionUpdater::plane(const slam::Robot& robot) const {
+  for (const Held& h : held_) {
+    if (h.robot == &robot) return h.plane;
+  }
+  return std::nullopt;
 }
 
-void PlanarMotionUpdater::after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& /*sensor*/,
+void PlanarMotionUpdater::after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor,
                                      const slam::RawData& raw, const RingBuffer<slam::ImuData>& /*inputs*/,
                                      slam::FrameStats& /*stats*/) {
-  if (!o_.enabled) return;
-  const auto id = static_cast<std::size_t>(robot.id());
-  if (planes_.size() <= id) {
-    planes_.resize(id + 1);
-    last_t_.resize(id + 1, std::numeric_limits<TimeNs>::min());
-  }
-  if (raw.t == last_t_[id]) return;  // this time's images already told it
-  last_t_[id] = raw.t;
+  if (!sensor.observes_landmarks()) return;  // after images only: an absolute fix's rate is not the plane's
+  const auto it = std::find_if(held_.begin(), held_.end(), [&](const Held& h) { return h.robot == &robot; });
+  if (it == held_.end()) return;
+  Held& held = *it;
   const math::Pose T = robot.pose();
-  if (!planes_[id]) {  // the first image: the plane the robot is on
-    planes_[id] = Plane{(T.q * up_).normalized(), T.p};
-    const Plane& pl = *planes_[id];
+  if (!held.plane) {  // the first image: the plane the robot is on
+    held.plane = Plane{(T.q * held.up).normalized(), T.p};
+    held.last_t = raw.t;
+    const Plane& pl = *held.plane;
     logger("slam")->info(
         "planar motion: robot '{}' held on the plane through ({:.3f}, {:.3f}, {:.3f}) with normal ({:.3f}, {:.3f}, "
         "{:.3f}) (world frame): height std {} m, tilt std {} rad",
-        robot.name(), pl.p0.x(), pl.p0.y(), pl.p0.z(), pl.n.x(), pl.n.y(), pl.n.z(), o_.height_std, o_.tilt_std);
+        robot.name(), pl.p0.x(), pl.p0.y(), pl.p0.z(), pl.n.x(), pl.n.y(), pl.n.z(), held.options.height_std,
+        held.options.tilt_std);
     return;
   }
-  const Plane& pl = *planes_[id];
-  const int n = robot.layout().tangent_size();
-  if (H_.rows() != 3 || H_.cols() != n) H_ = Eigen::MatrixXd::Zero(3, n);  // once per robot model
+  if (raw.t == held.last_t) return;  // this time's other image: the robot was told already
+  held.last_t = raw.t;
   Eigen::Vector3d h;
   Eigen::Matrix<double, 3, 6> J;
-  planar_motion_measurement(T.p, T.q.toRotationMatrix(), up_, pl.n, pl.p0, h, J);
-  H_.leftCols<6>() = J;
-  y_ = -h;
+  planar_motion_measurement(T.p, T.q.toRotationMatrix(), held.up, held.plane->n, held.plane->p0, h, J);
+  held.H.leftCols<6>() = J;
+  held.y = -h;
   const filter::BlockId blocks[1] = {robot.block()};
-  if (map.state().correct(blocks, H_, y_, R_).ok()) {
+  const filter::CorrectionResult r = map.state().correct(blocks, held.H, held.y, held.R);
+  if (r.ok()) {
     ++updates_;
-  } else {
-    ++refused_;
+    return;
+  }
+  if (refused_++ == 0) {
+    logger("slam")->warn("t = {:.3f} s: planar motion: the filter refused the update of robot '{}' ({}); counted, "
+                         "later refusals are not logged",
+                         to_seconds(raw.t), robot.name(), filter::to_string(r.status));
   }
 }
 

@@ -12,8 +12,10 @@
 //   h(x) = [ nᵀ(p − p₀),  t₁ᵀ R_WR up,  t₂ᵀ R_WR up ] = 0,   R = diag(height_std², tilt_std², tilt_std²),
 // and, for the right perturbation R_WR ← R_WR Exp(δθ) (MATH.md), ∂(tᵢᵀ R up)/∂δθ = −tᵢᵀ R_WR [up]×.
 // Any robot whose block starts with [p q] (all of rtslam's) can use it. The plane stays through the health monitor's
-// re-initializations (they keep the world frame) and through the odometry robot's rescales (about the start, which
-// is on the plane). Not with the observability-constrained filter (slam/consistency: oc), whose basis keeps the
+// re-initializations (they keep the world frame). The odometry robot's rescales scale about its start, which is on
+// the plane; after a re-initialization they scale about the restart's position, off the plane by the estimate's
+// height error then (centimetres at most), whose (1 − c) share each rescale by c moves the plane's heights by and
+// the update then pulls back. Not with the observability-constrained filter (slam/consistency: oc), whose basis keeps the
 // world's tilt and height unobservable, which this measures, nor with an absolute sensor that aligns (moves) the
 // world frame (ImageSlamOptions::validate refuses both).
 #include <optional>
@@ -45,28 +47,36 @@ void planar_motion_measurement(const Eigen::Vector3d& p, const Eigen::Matrix3d& 
                                const Eigen::Vector3d& n, const Eigen::Vector3d& p0, Eigen::Vector3d& h,
                                Eigen::Matrix<double, 3, 6>& H);
 
+/// One hook per System; each robot that should be held on its plane is added with its own options (a robot not
+/// added is left alone). Acts on camera images only (not on absolute fixes), once per robot and time (a stereo
+/// pair's two images are two steps of one time: telling the filter twice would halve the stds).
 class PlanarMotionUpdater final : public slam::StepHook {
  public:
-  explicit PlanarMotionUpdater(PlanarMotionOptions options);
+  /// Holds `robot` on its plane with `options` (validated; `enabled` is not looked at). Before the run.
+  void add_robot(const slam::Robot& robot, const PlanarMotionOptions& options);
   void after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor, const slam::RawData& raw,
                   const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats) override;
   long updates() const { return updates_; }
+  /// Updates the filter refused (the first is logged as a warning).
   long refused() const { return refused_; }
-  /// The plane of robot `robot_id` (its normal and a point on it, world frame), once its first image is past.
+  /// The plane a robot is held on (its normal and a point on it, world frame), once its first image is past.
   struct Plane {
     Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
     Eigen::Vector3d p0 = Eigen::Vector3d::Zero();
   };
-  std::optional<Plane> plane(int robot_id) const;
+  std::optional<Plane> plane(const slam::Robot& robot) const;
 
  private:
-  PlanarMotionOptions o_;
-  Eigen::Vector3d up_;
-  std::vector<std::optional<Plane>> planes_;  // per robot id
-  std::vector<TimeNs> last_t_;                // per robot id: the time of its latest update (one per time: a
-                                              // stereo pair's two images are two steps of one time)
-  Eigen::MatrixXd H_, R_;
-  Eigen::VectorXd y_;
+  struct Held {
+    const slam::Robot* robot = nullptr;
+    PlanarMotionOptions options;
+    Eigen::Vector3d up;  // options.up normalized
+    std::optional<Plane> plane;
+    TimeNs last_t = 0;  // the time of its latest update
+    Eigen::MatrixXd H, R;
+    Eigen::VectorXd y;
+  };
+  std::vector<Held> held_;
   long updates_ = 0, refused_ = 0;
 };
 

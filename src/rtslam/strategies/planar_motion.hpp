@@ -12,12 +12,12 @@
 //   h(x) = [ nᵀ(p − p₀),  t₁ᵀ R_WR up,  t₂ᵀ R_WR up ] = 0,   R = diag(height_std², tilt_std², tilt_std²),
 // and, for the right perturbation R_WR ← R_WR Exp(δθ) (MATH.md), ∂(tᵢᵀ R up)/∂δθ = −tᵢᵀ R_WR [up]×.
 // Any robot whose block starts with [p q] (all of rtslam's) can use it. The plane stays through the health monitor's
-// re-initializations (they keep the world frame). The odometry robot's rescales scale about its start, which is on
-// the plane; after a re-initialization they scale about the restart's position, off the plane by the estimate's
-// height error then (centimetres at most), whose (1 − c) share each rescale by c moves the plane's heights by and
-// the update then pulls back. Not with the observability-constrained filter (slam/consistency: oc), whose basis keeps the
-// world's tilt and height unobservable, which this measures, nor with an absolute sensor that aligns (moves) the
-// world frame (ImageSlamOptions::validate refuses both).
+// re-initializations (they keep the world frame). The odometry robot's rescales scale about its start, which is on the
+// plane; after a re-initialization they scale about the restart's position, off the plane by the estimate's height
+// error then (centimetres at most), whose (1 − c) share each rescale by c moves the plane's heights by and the update
+// then pulls back. Not with the observability-constrained filter (slam/consistency: oc), whose basis keeps the world's
+// tilt and height unobservable, which this measures, nor with an absolute sensor that aligns (moves) the world frame
+// (ImageSlamOptions::validate refuses both).
 #include <optional>
 #include <vector>
 
@@ -33,7 +33,7 @@ struct PlanarMotionOptions {
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  // robot-frame axis normal to the floor (normalized on use)
   double height_std = 0.02;                       // m: the floor's unevenness and the suspension's travel
   double tilt_std = 0.02;                         // rad (~1.1°): the robot's pitch and roll on that floor
-  /// ConfigError naming the key (planar_motion/up, height_std, tilt_std) out of range.
+  /// ConfigError naming the key (planar_motion: up, height_std, tilt_std) out of range.
   void validate() const;
 };
 

@@ -89,7 +89,7 @@ slam::RawData raw_at(TimeNs t) {
   return raw;
 }
 
-// The hook does not look at the sensor; after_step still takes one.
+// A camera: the hook acts after the steps of sensors that observe landmarks.
 slam::PinholeSensor some_camera() {
   models::CameraIntrinsics c;
   c.width = 640;

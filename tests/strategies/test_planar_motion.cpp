@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include "support/jacobian_check.hpp"
+
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/math/rotation.hpp"
@@ -26,34 +28,30 @@ TEST(PlanarMotion, JacobianMatchesNumericalDifferentiation) {
   Rng rng(7);
   std::normal_distribution<double> g(0.0, 1.0);
   const auto gauss3 = [&] { return Vector3d(g(rng), g(rng), g(rng)); };
+  const test::Layout pose = test::Layout::euclidean(3).then_quaternion();  // [p, q wxyz], tangent [δp δθ]
+  test::JacobianCheckOptions tight;
+  tight.rtol = 1e-8;
+  tight.atol = 1e-8;
   for (int trial = 0; trial < 20; ++trial) {
-    const Vector3d p = gauss3();
-    const Eigen::Quaterniond q = math::exp_so3(gauss3());
+    Eigen::VectorXd x0(7);
+    x0 << gauss3(), math::quat_to_wxyz(math::exp_so3(gauss3()));
     const Vector3d up = gauss3().normalized();
-    const Vector3d n = gauss3().normalized();  // the x axis as the normal too (the basis's other branch)
-    const Vector3d n_used = trial % 5 == 0 ? Vector3d::UnitX() : n;
+    // The x axis as the normal too (the plane basis's other branch).
+    const Vector3d n = trial % 5 == 0 ? Vector3d::UnitX() : Vector3d(gauss3().normalized());
     const Vector3d p0 = gauss3();
+    const auto h_of = [&](const Eigen::VectorXd& x) -> Eigen::VectorXd {
+      Vector3d h;
+      Eigen::Matrix<double, 3, 6> unused;
+      planar_motion_measurement(x.head<3>(), math::quat_from_wxyz(x.tail<4>()).toRotationMatrix(), up, n, p0, h,
+                                unused);
+      return h;
+    };
     Vector3d h;
     Eigen::Matrix<double, 3, 6> H;
-    planar_motion_measurement(p, q.toRotationMatrix(), up, n_used, p0, h, H);
-    Eigen::Matrix<double, 3, 6> Hn;
-    constexpr double eps = 1e-6;
-    for (int k = 0; k < 6; ++k) {
-      Vector3d d = Vector3d::Zero();
-      d[k % 3] = eps;
-      Vector3d hp, hm;
-      Eigen::Matrix<double, 3, 6> unused;
-      if (k < 3) {
-        planar_motion_measurement(p + d, q.toRotationMatrix(), up, n_used, p0, hp, unused);
-        planar_motion_measurement(p - d, q.toRotationMatrix(), up, n_used, p0, hm, unused);
-      } else {  // right perturbation: q ⊗ Exp(δθ)
-        planar_motion_measurement(p, (q * math::exp_so3(d)).toRotationMatrix(), up, n_used, p0, hp, unused);
-        planar_motion_measurement(p, (q * math::exp_so3(-d)).toRotationMatrix(), up, n_used, p0, hm, unused);
-      }
-      Hn.col(k) = (hp - hm) / (2.0 * eps);
-    }
-    EXPECT_LT((H - Hn).cwiseAbs().maxCoeff(), 1e-8) << "trial " << trial << "\nH\n" << H << "\nnumerical\n" << Hn;
+    planar_motion_measurement(x0.head<3>(), math::quat_from_wxyz(x0.tail<4>()).toRotationMatrix(), up, n, p0, h, H);
+    EXPECT_TRUE(test::check_jacobian("H", h_of, x0, H, pose, test::Layout::euclidean(3), tight)) << "trial " << trial;
     // On the plane and upright, h = 0.
+    const Eigen::Quaterniond q = math::quat_from_wxyz(x0.tail<4>());
     planar_motion_measurement(p0, q.toRotationMatrix(), up, (q * up).normalized(), p0, h, H);
     EXPECT_LT(h.norm(), 1e-12);
   }

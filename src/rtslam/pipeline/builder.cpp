@@ -187,7 +187,6 @@ BuiltSystem Registry::build(const BuildContext& c) const {
   b.system = std::make_unique<slam::System>(*b.map, std::move(mm), sys);
 
   add_robot_to(b, c);
-  if (o.zero_velocity.enabled) b.system->add_hook(std::make_unique<strategies::ZeroVelocityUpdater>(o.zero_velocity));
   return b;
 }
 
@@ -275,6 +274,14 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
       b.system->add_hook(std::move(hook));
     }
     b.planar_motion->add_robot(*target.robot, o.planar_motion);
+  }
+  if (o.zero_velocity.enabled) {  // likewise
+    if (b.zero_velocity == nullptr) {
+      auto hook = std::make_unique<strategies::ZeroVelocityUpdater>();
+      b.zero_velocity = hook.get();
+      b.system->add_hook(std::move(hook));
+    }
+    b.zero_velocity->add_robot(*target.robot, o.zero_velocity);
   }
   b.robots.push_back(BuiltRobot{target.robot, target.starter, target.input_id, target.cameras, target.position_sensor,
                               target.pose_sensor});

@@ -66,6 +66,7 @@ struct BuiltSystem {
   slam::Sensor* pose_sensor = nullptr;
   std::vector<BuiltRobot> robots;  // every robot, in the order added (the first: the fields above)
   strategies::PlanarMotionUpdater* planar_motion = nullptr;  // the system's hook, once a robot has planar_motion
+  strategies::ZeroVelocityUpdater* zero_velocity = nullptr;  // idem for zero_velocity
 };
 
 class Registry {

@@ -45,16 +45,27 @@ YAML::Node zero_velocity_to_yaml(const ZeroVelocityOptions& o) {
   return n;
 }
 
-ZeroVelocityUpdater::ZeroVelocityUpdater(ZeroVelocityOptions options) : o_(options) {
-  o_.validate();
+void ZeroVelocityUpdater::add_robot(const slam::Robot& robot, const ZeroVelocityOptions& options) {
+  options.validate();
+  Held h;
+  h.robot = &robot;
+  h.options = options;
+  // v = 0 (robot blocks [p q v ...]: v at tangent rows 6..8; the constant-velocity robot also ω = 0 at 9..11).
+  const int m = robot.needs_inputs() ? 3 : 6;
+  h.H = Eigen::MatrixXd::Zero(m, robot.layout().tangent_size());
+  h.H.block(0, 6, m, m).setIdentity();
+  h.R = options.velocity_std * options.velocity_std * Eigen::MatrixXd::Identity(m, m);
+  h.y = Eigen::VectorXd::Zero(m);
+  held_.push_back(std::move(h));
   displacements_.reserve(512);
 }
 
-bool ZeroVelocityUpdater::imu_at_rest(const RingBuffer<slam::ImuData>& inputs, TimeNs t) const {
+bool ZeroVelocityUpdater::imu_at_rest(const ZeroVelocityOptions& o, const RingBuffer<slam::ImuData>& inputs,
+                                      TimeNs t) const {
   // The window, or at the start of a stream what there is of it once that is a quarter of it (the images must agree
   // too; a stream that starts at rest is then held from its first frames, not after a whole window of drift).
-  const TimeNs from = t - from_seconds(o_.window_s);
-  if (inputs.empty() || inputs.front().t > t - from_seconds(0.25 * o_.window_s)) return false;
+  const TimeNs from = t - from_seconds(o.window_s);
+  if (inputs.empty() || inputs.front().t > t - from_seconds(0.25 * o.window_s)) return false;
   // The spread of the readings averaged over blocks of kBlock: a body at rest on spinning rotors vibrates at tens to
   // hundreds of Hz, which the block means average out; motion changes them.
   constexpr TimeNs kBlock = 25'000'000;
@@ -94,56 +105,61 @@ bool ZeroVelocityUpdater::imu_at_rest(const RingBuffer<slam::ImuData>& inputs, T
     const Eigen::Vector3d mean = s / n;
     return (q / n - mean.cwiseAbs2()).cwiseMax(0.0).sum();  // Σ per-axis variances = (norm of the stds)²
   };
-  return std::sqrt(spread(sg, qg)) <= o_.max_gyro_std && std::sqrt(spread(sa, qa)) <= o_.max_accel_std;
+  return std::sqrt(spread(sg, qg)) <= o.max_gyro_std && std::sqrt(spread(sa, qa)) <= o.max_accel_std;
 }
 
 void ZeroVelocityUpdater::after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor,
                                      const slam::RawData& raw, const RingBuffer<slam::ImuData>& inputs,
                                      slam::FrameStats& stats) {
-  // The image test: displacement of each landmark matched now and in this sensor's previous frame.
   const auto* dm = dynamic_cast<const ActiveSearchDataManager*>(sensor.data_manager());
-  if (dm == nullptr || sensor.id() < 0) return;
-  if (last_z_.size() <= static_cast<std::size_t>(sensor.id())) last_z_.resize(static_cast<std::size_t>(sensor.id()) + 1);
-  std::vector<Matched>& last = last_z_[static_cast<std::size_t>(sensor.id())];  // sorted by landmark id
+  if (dm == nullptr || sensor.id() < 0) return;  // not a camera (an absolute fix), or not attached
+  after_image(map, robot, sensor.id(), raw.t, dm->last_frame(), inputs, stats);
+}
+
+void ZeroVelocityUpdater::after_image(slam::Map& map, slam::Robot& robot, int sensor_id, TimeNs t,
+                                      std::span<const ActiveSearchDataManager::FrameMatch> matches,
+                                      const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats) {
+  const auto it = std::find_if(held_.begin(), held_.end(), [&](const Held& h) { return h.robot == &robot; });
+  if (it == held_.end() || sensor_id < 0) return;
+  Held& held = *it;
+  const ZeroVelocityOptions& o = held.options;
+  // The image test: displacement of each landmark matched now and in this sensor's previous frame.
+  const auto k = static_cast<std::size_t>(sensor_id);
+  if (last_z_.size() <= k) last_z_.resize(k + 1);
+  std::vector<Matched>& last = last_z_[k];  // sorted by landmark id
   displacements_.clear();
-  for (const auto& m : dm->last_frame()) {
+  for (const auto& m : matches) {
     if (m.landmark_id < 0 || !m.matched) continue;
-    const auto it = std::lower_bound(last.begin(), last.end(), m.landmark_id,
+    const auto at = std::lower_bound(last.begin(), last.end(), m.landmark_id,
                                      [](const Matched& a, int id) { return a.id < id; });
-    if (it != last.end() && it->id == m.landmark_id) displacements_.push_back((m.z - it->z).norm());
+    if (at != last.end() && at->id == m.landmark_id) displacements_.push_back((m.z - at->z).norm());
   }
   // Remember this frame's matches only (a landmark not matched now has no displacement next frame).
   last.clear();
-  for (const auto& m : dm->last_frame()) {
+  for (const auto& m : matches) {
     if (m.landmark_id >= 0 && m.matched) last.push_back(Matched{m.landmark_id, m.z});
   }
   std::sort(last.begin(), last.end(), [](const Matched& a, const Matched& b) { return a.id < b.id; });
   disparity_ = -1.0;
-  if (still_.size() <= static_cast<std::size_t>(sensor.id())) still_.resize(static_cast<std::size_t>(sensor.id()) + 1);
-  Verdict& still = still_[static_cast<std::size_t>(sensor.id())];
-  if (static_cast<int>(displacements_.size()) >= o_.min_matches) {
+  if (still_.size() <= k) still_.resize(k + 1);
+  Verdict& still = still_[k];
+  if (static_cast<int>(displacements_.size()) >= o.min_matches) {
     auto mid = displacements_.begin() + static_cast<std::ptrdiff_t>(displacements_.size() / 2);
     std::nth_element(displacements_.begin(), mid, displacements_.end());
     disparity_ = *mid;
-    still = Verdict{disparity_ <= o_.max_disparity_px, raw.t};
+    still = Verdict{disparity_ <= o.max_disparity_px, t};
   }
   // Too few matches to judge: the images' previous verdict stands for up to `window` s (the IMU must still agree).
-  if (!o_.enabled || !still.still || raw.t - still.t > from_seconds(o_.window_s)) return;
-  if (robot.needs_inputs() && !imu_at_rest(inputs, raw.t)) return;
+  if (!still.still || t - still.t > from_seconds(o.window_s)) return;
+  if (held.last_t == t) return;  // this time's other image: the robot was told already
+  if (robot.needs_inputs() && !imu_at_rest(o, inputs, t)) return;
 
-  // v = 0 (robot blocks [p q v ...]: v at tangent rows 6..8; the constant-velocity robot also ω = 0 at 9..11).
-  const int m = robot.needs_inputs() ? 3 : 6;
+  const int m = static_cast<int>(held.y.size());
   const filter::BlockId blocks[1] = {robot.block()};
-  const int n = robot.layout().tangent_size();
-  if (H_.rows() != m || H_.cols() != n) {  // sized once per robot model (no allocation per update)
-    H_ = Eigen::MatrixXd::Zero(m, n);
-    H_.block(0, 6, m, m).setIdentity();
-    R_ = o_.velocity_std * o_.velocity_std * Eigen::MatrixXd::Identity(m, m);
-    y_.resize(m);
-  }
-  y_ = -map.state().mean(robot.block()).segment(7, m);  // ambient: v at 7 (and ω at 10: constant velocity)
-  const filter::CorrectionResult r = map.state().correct(blocks, H_, y_, R_);
+  held.y = -map.state().mean(robot.block()).segment(7, m);  // ambient: v at 7 (and ω at 10: constant velocity)
+  const filter::CorrectionResult r = map.state().correct(blocks, held.H, held.y, held.R);
   if (r.ok()) {
+    held.last_t = t;
     stats.zero_velocity = true;
     ++updates_;
     robot.set_at_rest(true);  // held over the next prediction (robots with inputs; see Robot::set_at_rest)

@@ -9,12 +9,15 @@
 //   - the images: the median displacement of the landmarks matched in this frame and the previous one below
 //     `max_disparity_px` (the IMU alone cannot tell a vibrating rest from slow motion).
 // The detector needs both; robots without inputs are judged by the images alone.
+#include <limits>
+#include <span>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/slam/system.hpp"
+#include "rtslam/strategies/active_search.hpp"
 
 namespace rtslam::strategies {
 
@@ -33,20 +36,37 @@ struct ZeroVelocityOptions {
 void read_zero_velocity(YamlMap section, ZeroVelocityOptions& o);
 YAML::Node zero_velocity_to_yaml(const ZeroVelocityOptions& o);
 
+/// One hook per System; each robot to be held at rest is added with its own options (a robot not added is left
+/// alone). The image test runs per camera (each keeps its previous frame's matches); the update is applied at most
+/// once per robot and time (a stereo pair's two images are two steps of one time: telling the filter twice would
+/// divide the std by √2).
 class ZeroVelocityUpdater final : public slam::StepHook {
  public:
-  explicit ZeroVelocityUpdater(ZeroVelocityOptions options);
+  /// Updates `robot` at rest with `options` (validated; `enabled` is not looked at). Before the run.
+  void add_robot(const slam::Robot& robot, const ZeroVelocityOptions& options);
   void after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor, const slam::RawData& raw,
                   const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats) override;
+  /// What after_step does with one camera's image at time t once its matches are known (`matches`: the frame's
+  /// visible observations, ActiveSearchDataManager::last_frame()).
+  void after_image(slam::Map& map, slam::Robot& robot, int sensor_id, TimeNs t,
+                   std::span<const ActiveSearchDataManager::FrameMatch> matches, const RingBuffer<slam::ImuData>& inputs,
+                   slam::FrameStats& stats);
   long updates() const { return updates_; }
   /// The image test alone: the median displacement (px) of the landmarks matched now and in the sensor's previous
   /// frame, or a negative value when fewer than min_matches are.
   double last_disparity_px() const { return disparity_; }
 
  private:
-  bool imu_at_rest(const RingBuffer<slam::ImuData>& inputs, TimeNs t) const;
+  struct Held {
+    const slam::Robot* robot = nullptr;
+    ZeroVelocityOptions options;
+    TimeNs last_t = std::numeric_limits<TimeNs>::min();  // the time of its latest update
+    Eigen::MatrixXd H, R;
+    Eigen::VectorXd y;
+  };
+  bool imu_at_rest(const ZeroVelocityOptions& o, const RingBuffer<slam::ImuData>& inputs, TimeNs t) const;
 
-  ZeroVelocityOptions o_;
+  std::vector<Held> held_;
   // Per sensor id: the landmarks matched in its previous frame and their pixels, sorted by id (bounded by the
   // matches of a frame, whatever the ids grow to over a long run).
   struct Matched {
@@ -62,8 +82,6 @@ class ZeroVelocityUpdater final : public slam::StepHook {
   };
   std::vector<Verdict> still_;
   std::vector<double> displacements_;
-  Eigen::MatrixXd H_, R_;
-  Eigen::VectorXd y_;
   double disparity_ = -1.0;
   long updates_ = 0;
 };

@@ -1,5 +1,5 @@
 // Zero-velocity updates (strategies/zero_velocity.hpp): the image test, one update against the closed-form Kalman
-// step, once per robot and time (a stereo pair), each robot with its own options, and the verdict's hold.
+// step, once per robot and time (a stereo pair), each robot with its own options, the verdict's hold, refusals.
 #include <memory>
 #include <vector>
 
@@ -146,6 +146,28 @@ TEST(ZeroVelocity, EachRobotWithItsOwnOptionsAndARobotNotAddedIsLeftAlone) {
   EXPECT_NEAR(a.v().x(), v0.x() * rv / (1e-4 + rv), 1e-15);  // a's own std, not the default 0.002
   EXPECT_EQ(b.v().x(), v0.x());
   EXPECT_EQ(c.v().x(), v0.x());
+}
+
+TEST(ZeroVelocity, ARefusedUpdateIsCountedAndChangesNothing) {
+  const Vector3d v0(0.01, 0.0, 0.0);
+  MovingRobot r(v0, Vector3d::Zero(), 1e-4);
+  Feed run;
+  run.u.add_robot(*r.robot, ZeroVelocityOptions{});
+  run.image(r, 0, 0, matched(12, Vector2d::Zero()));
+  // A broken covariance (a negative velocity variance): S is not positive definite and the filter refuses.
+  r.map->state().cov(r.robot->block(), r.robot->block())(6, 6) = -1.0;
+  run.image(r, 0, 50 * kMs, matched(12, Vector2d::Zero()));
+  EXPECT_EQ(run.u.updates(), 0);
+  EXPECT_EQ(run.u.refused(), 1);
+  EXPECT_FALSE(run.stats.zero_velocity);
+  EXPECT_EQ(r.v(), v0);
+  // Nothing was told at that time: the same time's other image tries again; so does the next time.
+  run.image(r, 1, 0, matched(12, Vector2d::Zero()));
+  run.image(r, 1, 50 * kMs, matched(12, Vector2d::Zero()));
+  EXPECT_EQ(run.u.refused(), 2);
+  run.image(r, 0, 100 * kMs, matched(12, Vector2d::Zero()));
+  EXPECT_EQ(run.u.refused(), 3);
+  EXPECT_EQ(run.u.updates(), 0);
 }
 
 }  // namespace

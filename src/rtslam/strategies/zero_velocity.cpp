@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
 #include "rtslam/strategies/active_search.hpp"
 
 namespace rtslam::strategies {
@@ -163,6 +164,12 @@ void ZeroVelocityUpdater::after_image(slam::Map& map, slam::Robot& robot, int se
     stats.zero_velocity = true;
     ++updates_;
     robot.set_at_rest(true);  // held over the next prediction (robots with inputs; see Robot::set_at_rest)
+    return;
+  }
+  if (refused_++ == 0) {
+    logger("slam")->warn("t = {:.3f} s: zero velocity: the filter refused the update of robot '{}' ({}); counted, "
+                         "later refusals are not logged",
+                         to_seconds(t), robot.name(), filter::to_string(r.status));
   }
 }
 

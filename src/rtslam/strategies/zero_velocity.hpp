@@ -52,6 +52,8 @@ class ZeroVelocityUpdater final : public slam::StepHook {
                    std::span<const ActiveSearchDataManager::FrameMatch> matches, const RingBuffer<slam::ImuData>& inputs,
                    slam::FrameStats& stats);
   long updates() const { return updates_; }
+  /// Updates the filter refused (the first is logged as a warning).
+  long refused() const { return refused_; }
   /// The image test alone: the median displacement (px) of the landmarks matched now and in the sensor's previous
   /// frame, or a negative value when fewer than min_matches are.
   double last_disparity_px() const { return disparity_; }
@@ -83,7 +85,7 @@ class ZeroVelocityUpdater final : public slam::StepHook {
   std::vector<Verdict> still_;
   std::vector<double> displacements_;
   double disparity_ = -1.0;
-  long updates_ = 0;
+  long updates_ = 0, refused_ = 0;
 };
 
 }  // namespace rtslam::strategies

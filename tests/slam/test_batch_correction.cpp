@@ -11,19 +11,11 @@
 #include "rtslam/slam/batch_correction.hpp"
 #include "rtslam/slam/landmark_init.hpp"
 #include "rtslam/slam/map.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::slam {
 namespace {
 
-models::CameraIntrinsics vga_camera() {
-  models::CameraIntrinsics c;
-  c.width = 640;
-  c.height = 480;
-  c.fx = c.fy = 400.0;
-  c.cx = 320.0;
-  c.cy = 240.0;
-  return c;
-}
 
 // A constant-velocity robot with one camera, four AHP landmarks initialized at 2 m (prior) while they are at
 // 1–1.4 m, then the robot translates sideways by 0.2 m: their measurements are far from the prediction.
@@ -35,13 +27,13 @@ struct Scene {
   std::vector<Observation*> obs;
   Scene() {
     auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
-    sensor = &robot->add_sensor(std::make_unique<PinholeSensor>("cam", vga_camera(), math::Pose::identity()));
+    sensor = &robot->add_sensor(std::make_unique<PinholeSensor>("cam", support::vga_camera(), math::Pose::identity()));
     Eigen::VectorXd x = Eigen::VectorXd::Zero(13);
     x[3] = 1.0;
     Eigen::MatrixXd P = Eigen::MatrixXd::Zero(12, 12);
     P.bottomRightCorner<6, 6>() = 0.04 * Eigen::MatrixXd::Identity(6, 6);
     Robot& r = map.add_robot(std::move(robot), x, P, 0);
-    const models::PinholeCamera cam(vga_camera());
+    const models::PinholeCamera cam(support::vga_camera());
     for (const auto& p : points) {
       Eigen::Vector2d z;
       EXPECT_TRUE(cam.project(p, z));

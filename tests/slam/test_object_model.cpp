@@ -5,17 +5,13 @@
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/observation.hpp"
 #include "support/jacobian_check.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::slam {
 namespace {
 
 models::CameraIntrinsics test_camera() {
-  models::CameraIntrinsics c;
-  c.width = 640;
-  c.height = 480;
-  c.fx = c.fy = 400.0;
-  c.cx = 320.0;
-  c.cy = 240.0;
+  models::CameraIntrinsics c = support::vga_camera();
   c.model = models::DistortionModel::RadTan;
   c.coeffs = {-0.2, 0.05, 1e-4, -2e-4};
   return c;

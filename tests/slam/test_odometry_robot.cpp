@@ -14,6 +14,7 @@
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
 #include "slam/system_doubles.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::slam {
 namespace {
@@ -51,13 +52,7 @@ struct OdometryRig {
     system = std::make_unique<System>(*map, std::make_unique<NoMapManager>());
     auto r = std::make_unique<OdometryRobot>(params, "robot", scale);
     robot = r.get();
-    models::CameraIntrinsics c;
-    c.width = 640;
-    c.height = 480;
-    c.fx = c.fy = 400.0;
-    c.cx = 320.0;
-    c.cy = 240.0;
-    camera = &r->add_sensor(std::make_unique<PinholeSensor>("cam0", c, math::Pose{}));
+    camera = &r->add_sensor(std::make_unique<PinholeSensor>("cam0", support::vga_camera(), math::Pose{}));
     auto d = std::make_unique<CountingDataManager>();
     dm = d.get();
     camera->set_data_manager(std::move(d));

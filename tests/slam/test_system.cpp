@@ -8,19 +8,11 @@
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/slam/system.hpp"
 #include "slam/system_doubles.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::slam {
 namespace {
 
-models::CameraIntrinsics system_camera() {
-  models::CameraIntrinsics c;
-  c.width = 640;
-  c.height = 480;
-  c.fx = c.fy = 400.0;
-  c.cx = 320.0;
-  c.cy = 240.0;
-  return c;
-}
 
 // Adds a sensor to `robot` with a counting data manager; returns the manager.
 CountingDataManager& add_counted(Robot& robot, std::unique_ptr<Sensor> sensor) {
@@ -103,7 +95,7 @@ struct InertialRig {
     map = &world.add_map();
     system = std::make_unique<System>(*map, std::make_unique<NoMapManager>(), so);
     auto robot = std::make_unique<InertialRobot>(models::InertialParams{});
-    camera = &robot->add_sensor(std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
+    camera = &robot->add_sensor(std::make_unique<PinholeSensor>("cam0", support::vga_camera(), math::Pose{}));
     auto dm_ptr = std::make_unique<CountingDataManager>();
     dm = dm_ptr.get();
     camera->set_data_manager(std::move(dm_ptr));
@@ -303,7 +295,7 @@ TEST(System, RobotsWithoutInputsProcessAtOnce) {
   System system(map, std::make_unique<NoMapManager>());
   auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
   CountingDataManager& counting =
-      add_counted(*robot, std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
+      add_counted(*robot, std::make_unique<PinholeSensor>("cam0", support::vga_camera(), math::Pose{}));
   const Sensor& cam = *robot->sensors()[0];
   const int input = system.add_robot(std::move(robot), std::make_unique<WindowStarter>(1, 13, 12));
   auto d = system.spare<Blob>();
@@ -326,15 +318,17 @@ TEST(System, AStereoPairIsOneFrame) {
   Map& map = world.add_map();
   System system(map, std::make_unique<NoMapManager>());
   auto robot = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
-  CountingDataManager& c0 = add_counted(*robot, std::make_unique<PinholeSensor>("cam0", system_camera(), math::Pose{}));
-  CountingDataManager& c1 = add_counted(*robot, std::make_unique<PinholeSensor>("cam1", system_camera(), math::Pose{}));
+  CountingDataManager& c0 =
+      add_counted(*robot, std::make_unique<PinholeSensor>("cam0", support::vga_camera(), math::Pose{}));
+  CountingDataManager& c1 =
+      add_counted(*robot, std::make_unique<PinholeSensor>("cam1", support::vga_camera(), math::Pose{}));
   CountingDataManager& cg =
       add_counted(*robot, std::make_unique<AbsoluteSensor>("gps", AbsoluteSensor::Kind::Position, math::Pose{}));
   const Sensor &cam0 = *robot->sensors()[0], &cam1 = *robot->sensors()[1], &gps = *robot->sensors()[2];
   system.add_robot(std::move(robot), std::make_unique<WindowStarter>(1, 13, 12));
   auto other = std::make_unique<ConstantVelocityRobot>(models::ConstantVelocityParams{});
   CountingDataManager& c2 =
-      add_counted(*other, std::make_unique<PinholeSensor>("other", system_camera(), math::Pose{}));
+      add_counted(*other, std::make_unique<PinholeSensor>("other", support::vga_camera(), math::Pose{}));
   const Sensor& cam2 = *other->sensors()[0];
   system.add_robot(std::move(other), std::make_unique<WindowStarter>(1, 13, 12));
   Recorder recorder;

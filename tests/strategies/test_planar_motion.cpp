@@ -17,6 +17,7 @@
 #include "rtslam/slam/robot.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/strategies/planar_motion.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::strategies {
 namespace {
@@ -88,15 +89,7 @@ slam::RawData raw_at(TimeNs t) {
 }
 
 // A camera: the hook acts after the steps of sensors that observe landmarks.
-slam::PinholeSensor some_camera() {
-  models::CameraIntrinsics c;
-  c.width = 640;
-  c.height = 480;
-  c.fx = c.fy = 400.0;
-  c.cx = 320.0;
-  c.cy = 240.0;
-  return slam::PinholeSensor("cam0", c, math::Pose{});
-}
+slam::PinholeSensor some_camera() { return slam::PinholeSensor("cam0", support::vga_camera(), math::Pose{}); }
 
 TEST(PlanarMotion, TheFirstImageSetsThePlaneThenOneUpdateATimeIsTheClosedFormKalmanStep) {
   OneRobot r;

@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <fmt/format.h>
+
 #include "rtslam/core/error.hpp"
 #include "rtslam/pipeline/config_common.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
@@ -129,6 +131,25 @@ TEST(PlanarMotionOptions, KeysAreReadWrittenBoundedAndRefusedWithTheConstrainedF
                   "test.yaml", gps_start);
             }),
             "(no error)");
+}
+
+TEST(ZeroVelocityOptions, RefusedWithTheOdometryRobotWhoseStateHasNoVelocity) {
+  ImageSlamOptions odo;
+  EXPECT_NE(error_of([&] {
+              apply_image_slam_config(YAML::Load("slam: {robot: odometry}\nzero_velocity: {enabled: true}"),
+                                      "test.yaml", odo);
+            }).find("zero_velocity with slam/robot = odometry"),
+            std::string::npos);
+  for (const char* robot : {"constant_velocity", "inertial"}) {
+    ImageSlamOptions ok;
+    EXPECT_EQ(error_of([&] {
+                apply_image_slam_config(
+                    YAML::Load(fmt::format("slam: {{robot: {}}}\nzero_velocity: {{enabled: true}}", robot)),
+                    "test.yaml", ok);
+              }),
+              "(no error)")
+        << robot;
+  }
 }
 
 TEST(OdometryOptions, RescaleOnWithAnAbsoluteSensorIsRefused) {

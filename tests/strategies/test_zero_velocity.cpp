@@ -1,11 +1,14 @@
 // Zero-velocity updates (strategies/zero_velocity.hpp): the image test, one update against the closed-form Kalman
 // step, once per robot and time (a stereo pair), each robot with its own options, the verdict's hold, refusals.
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "rtslam/core/error.hpp"
 #include "rtslam/slam/map.hpp"
+#include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/robot.hpp"
 #include "rtslam/strategies/zero_velocity.hpp"
 
@@ -168,6 +171,25 @@ TEST(ZeroVelocity, ARefusedUpdateIsCountedAndChangesNothing) {
   run.image(r, 0, 100 * kMs, matched(12, Vector2d::Zero()));
   EXPECT_EQ(run.u.refused(), 3);
   EXPECT_EQ(run.u.updates(), 0);
+}
+
+TEST(ZeroVelocity, ARobotWithoutVelocityInItsStateIsRefusedWhenAdded) {
+  slam::World world;
+  slam::Map& map = world.add_map();
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(7);
+  x0[3] = 1.0;
+  slam::Robot& odo = map.add_robot(std::make_unique<slam::OdometryRobot>(models::OdometryParams{}), x0,
+                                   Eigen::MatrixXd::Identity(6, 6), 0);
+  ZeroVelocityUpdater u;
+  try {
+    u.add_robot(odo, ZeroVelocityOptions{});
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("zero_velocity: robot 'robot' has no velocity"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(slam::InertialRobot(models::InertialParams{}).rest_rows(), 3);  // v (not the biases, not g)
+  EXPECT_EQ(slam::ConstantVelocityRobot(models::ConstantVelocityParams{}).rest_rows(), 6);  // v and ω
 }
 
 }  // namespace

@@ -78,6 +78,10 @@ void ImageSlamOptions::validate() const {
     throw ConfigError("planar_motion with slam/consistency = oc: the constrained filter keeps the world's tilt and "
                       "height unobservable, which the plane measures; use consistency none or fej");
   }
+  if (zero_velocity.enabled && robot == "odometry") {
+    throw ConfigError("zero_velocity with slam/robot = odometry: the odometry robot's state [p q] has no velocity to "
+                      "set to 0 (the odometry itself says when it stands still); turn zero_velocity off");
+  }
   time_offset.validate();
   if (time_offset.estimate && robot != "inertial") {
     throw ConfigError(fmt::format("camera/time_offset/estimate needs slam/robot = inertial (a camera's time offset is "

@@ -66,6 +66,10 @@ class Robot {
   /// holds its state over the next prediction instead of integrating its inputs (OpenVINS's zero-velocity update
   /// does the same), the inputs' noise integrated over a standstill being all drift. Robots without inputs ignore it.
   virtual void set_at_rest(bool /*at_rest*/) {}
+  /// The rate states a zero-velocity update sets to 0 (strategies/zero_velocity.hpp): how many tangent rows, from
+  /// row 6 (ambient 7), right after the pose [p q]. 0 for a robot without such states (its state has no velocity:
+  /// zero_velocity refuses it).
+  virtual int rest_rows() const { return 0; }
   /// A change of the map's unit of length (Map::scale_lengths): whether every length in the robot's state can be
   /// multiplied by a factor (a robot with metric states, e.g. gravity, cannot: false by default).
   virtual bool can_scale_lengths() const { return false; }
@@ -124,6 +128,8 @@ class ConstantVelocityRobot final : public Robot {
   static filter::BlockLayout static_layout();
   /// [v; ω] of the state.
   bool pose_rate(const Eigen::VectorXd& mean, Eigen::Matrix<double, 6, 1>& xi) const override;
+  /// v and ω.
+  int rest_rows() const override { return 6; }
   const models::ConstantVelocityParams& params() const { return params_; }
 
  private:
@@ -158,6 +164,8 @@ class InertialRobot final : public Robot {
   Eigen::VectorXd reanchor(const Eigen::VectorXd& x0, const Eigen::VectorXd& last_good,
                            const HealthOptions& health) const override;
   filter::BlockLayout layout() const override { return static_layout(); }
+  /// v (the biases and gravity are not rates).
+  int rest_rows() const override { return 3; }
   /// [p q v a_b ω_b g]: p, v and the gravity vector g (all in W) move with the world; the biases do not. With g a
   /// state, every rotation of the world is unobservable, not only the yaw.
   void nullspace(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::MatrixXd> N) const override;

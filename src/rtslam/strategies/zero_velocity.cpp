@@ -48,11 +48,16 @@ YAML::Node zero_velocity_to_yaml(const ZeroVelocityOptions& o) {
 
 void ZeroVelocityUpdater::add_robot(const slam::Robot& robot, const ZeroVelocityOptions& options) {
   options.validate();
+  // v = 0 (robot blocks [p q v ...]: v at tangent rows 6..8; the constant-velocity robot also ω = 0 at 9..11).
+  const int m = robot.rest_rows();
+  if (m <= 0 || 6 + m > robot.layout().tangent_size()) {
+    throw ConfigError(fmt::format("zero_velocity: robot '{}' has no velocity in its state (tangent size {}) to set to "
+                                  "0; turn zero_velocity off for it",
+                                  robot.name(), robot.layout().tangent_size()));
+  }
   Held h;
   h.robot = &robot;
   h.options = options;
-  // v = 0 (robot blocks [p q v ...]: v at tangent rows 6..8; the constant-velocity robot also ω = 0 at 9..11).
-  const int m = robot.needs_inputs() ? 3 : 6;
   h.H = Eigen::MatrixXd::Zero(m, robot.layout().tangent_size());
   h.H.block(0, 6, m, m).setIdentity();
   h.R = options.velocity_std * options.velocity_std * Eigen::MatrixXd::Identity(m, m);

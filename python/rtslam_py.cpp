@@ -108,6 +108,7 @@ py::dict frame_dict(const slam::FrameStats& f) {
   d["budget_skipped"] = f.budget_skipped;
   d["time_search_ms"] = f.time_search_ms;
   d["search_fallback"] = f.fallback;
+  d["zero_velocity"] = f.zero_velocity;
   d["time_ms"] = f.time_total_ms;
   return d;
 }

@@ -324,6 +324,7 @@ io::FrameStats to_io(const slam::FrameStats& s) {
   f.absolute_updates = s.absolute_updates;
   f.absolute_rejected = s.absolute_rejected;
   f.search_fallback = s.fallback;
+  f.zero_velocity = s.zero_velocity;
   return f;
 }
 
@@ -575,6 +576,7 @@ void run_dataset(const RunOptions& ro) {
     }
     {
       long refused = 0, without_search = 0, with_fallback = 0, nis_n = 0, abs_updates = 0, abs_rejected = 0;
+      long at_rest = 0;
       double nis_sum = 0.0;
       for (const auto& f : result.frames) {
         refused += f.refused;
@@ -582,6 +584,7 @@ void run_dataset(const RunOptions& ro) {
         abs_rejected += f.absolute_rejected;
         without_search += f.searched == 0 ? 1 : 0;
         with_fallback += f.fallback > 0 ? 1 : 0;
+        at_rest += f.zero_velocity ? 1 : 0;
         nis_sum += f.nis;
         nis_n += f.nis_count;
       }
@@ -604,6 +607,7 @@ void run_dataset(const RunOptions& ro) {
       if (o.position_sensor.enabled || o.pose_sensor.enabled) {
         summary["absolute"] = {{"corrections_applied", abs_updates}, {"corrections_rejected", abs_rejected}};
       }
+      if (o.zero_velocity.enabled) summary["zero_velocity"] = {{"frames_with_update", at_rest}};
       if (o.robot == "odometry") {
         summary["odometry"] = {{"rescale", result.odometry_rescale},
                                {"rescales", result.odometry_rescales},

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -607,16 +608,22 @@ TEST(Cli, AMissingImageEarlyInTheRunDoesNotLoseTracking) {
   EXPECT_EQ(a["health"]["resets"], 0) << a.dump(2);
   EXPECT_GE(a["health"]["frames_with_search_fallback"], 1) << a.dump(2);  // the frame after the gap at least
   EXPECT_NE(kept.out.find("the smallest larger ones were searched"), std::string::npos) << kept.out;
-  // frames.csv says which frames: its last column (search_fallback) is above 0 in as many rows as the summary counts,
+  // frames.csv says which frames: its column 27 (search_fallback) is above 0 in as many rows as the summary counts,
   // the first of them the frame after the gap (t = 0.5 s).
+  const auto fields = [](const std::string& line) {
+    std::vector<std::string> out;
+    std::istringstream in(line);
+    for (std::string f; std::getline(in, f, ',');) out.push_back(f);
+    return out;
+  };
   std::istringstream rows(read_file(d / "a" / "frames.csv"));
   std::string row;
   std::getline(rows, row);
-  ASSERT_EQ(row.substr(row.rfind(',') + 1), "search_fallback");
+  ASSERT_EQ(fields(row).at(26), "search_fallback");
   int with_fallback = 0;
   long long first_t = -1;
   while (std::getline(rows, row)) {
-    if (std::stoi(row.substr(row.rfind(',') + 1)) == 0) continue;
+    if (std::stoi(fields(row).at(26)) == 0) continue;
     if (with_fallback++ == 0) first_t = std::stoll(row.substr(0, row.find(',')));
   }
   EXPECT_EQ(with_fallback, a["health"]["frames_with_search_fallback"]);
@@ -662,6 +669,38 @@ TEST(Cli, ARunThatNeverMatchesFailsEvenWhenTooShortForTheHealthMonitor) {
   const Result ok = run("run" + ds + " --stop-after 1.2 --out " + (d / "c").string());
   EXPECT_EQ(ok.code, 0) << ok.out;
   EXPECT_NE(read_file(d / "c" / "summary.json").find("\"never_tracked\": false"), std::string::npos);
+}
+
+// zero_velocity's updates reach the outputs: frames.csv's column 28 flags the frames, summary.json counts them.
+TEST(Cli, ZeroVelocityUpdatesAreFlaggedInFramesCsvAndCountedInTheSummary) {
+  const fs::path data = fs::path(RTSLAM_SOURCE_DIR) / ".." / "shared" / "datasets" / "euroc-v101-static";
+  if (!fs::exists(data)) GTEST_SKIP() << "dataset " << data << " not found";
+  const fs::path d = temp_dir("zero_velocity_outputs");
+  fs::create_directories(d);
+  {
+    std::ofstream c(d / "zupt.yaml");
+    c << read_file(fs::path(RTSLAM_SOURCE_DIR) / "config" / "euroc_mono_imu.yaml")
+      << "\nzero_velocity:\n  enabled: true\n";
+  }
+  const Result r =
+      run("run --dataset euroc:" + data.string() + " --config " + (d / "zupt.yaml").string() + " --out " +
+          (d / "o").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto summary = nlohmann::json::parse(read_file(d / "o" / "summary.json"));
+  std::istringstream rows(read_file(d / "o" / "frames.csv"));
+  std::string row;
+  std::getline(rows, row);
+  ASSERT_EQ(row.substr(row.rfind(',') + 1), "zero_velocity");
+  int flagged = 0, frames = 0;
+  while (std::getline(rows, row)) {
+    ++frames;
+    const std::string last = row.substr(row.rfind(',') + 1);
+    ASSERT_TRUE(last == "0" || last == "1") << row;
+    flagged += last == "1" ? 1 : 0;
+  }
+  // The 4.7 s standstill: most frames at rest (the first ones have no previous frame or too short an IMU window).
+  EXPECT_GT(flagged, frames / 2) << frames;
+  EXPECT_EQ(summary["zero_velocity"]["frames_with_update"], flagged) << summary.dump(2);
 }
 
 TEST(Cli, AGroundTruthFileThatMatchesNothingFailsTheRunAfterItsOutputs) {

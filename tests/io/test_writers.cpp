@@ -213,6 +213,7 @@ TEST(FramesCsv, RoundTripsEveryField) {
     s.absolute_updates = 5 + static_cast<int>(i);
     s.absolute_rejected = static_cast<int>(i % 2);
     s.search_fallback = static_cast<int>(i % 4);
+    s.zero_velocity = i % 2 == 1;
   }
   {
     FramesCsvWriter w(dir / "frames.csv");
@@ -251,6 +252,7 @@ TEST(FramesCsv, RoundTripsEveryField) {
     EXPECT_EQ(back[i].absolute_updates, rows[i].absolute_updates);
     EXPECT_EQ(back[i].absolute_rejected, rows[i].absolute_rejected);
     EXPECT_EQ(back[i].search_fallback, rows[i].search_fallback);
+    EXPECT_EQ(back[i].zero_velocity, rows[i].zero_velocity);
   }
   EXPECT_EQ(test::read_text(dir / "frames.csv").rfind(FramesCsvWriter::header(), 0), 0u);
 }
@@ -301,6 +303,7 @@ TEST(FramesCsv, ReadsTheShorterRowsOfEarlierVersions) {
   s.absolute_updates = 3;
   s.absolute_rejected = 1;
   s.search_fallback = 2;
+  s.zero_velocity = true;
   {
     FramesCsvWriter w(dir / "frames.csv");
     w.write(s);
@@ -313,8 +316,8 @@ TEST(FramesCsv, ReadsTheShorterRowsOfEarlierVersions) {
     if (b == std::string::npos) b = row.size();
     if (b > a) fields.push_back(row.substr(a, b - a));
   }
-  ASSERT_EQ(fields.size(), 27u);
-  for (const std::size_t columns : {26u, 24u, 21u, 16u, 25u}) {
+  ASSERT_EQ(fields.size(), 28u);
+  for (const std::size_t columns : {27u, 26u, 24u, 21u, 16u, 25u}) {
     std::string text = "#header\n";
     for (std::size_t k = 0; k < columns; ++k) text += (k > 0 ? "," : "") + fields[k];
     test::write_text(dir / "old.csv", text + "\n");
@@ -328,7 +331,8 @@ TEST(FramesCsv, ReadsTheShorterRowsOfEarlierVersions) {
     EXPECT_EQ(back[0].landmarks, 7);
     EXPECT_EQ(back[0].t_total_ms, 2.5);
     EXPECT_EQ(back[0].absolute_updates, columns >= 26 ? 3 : 0) << columns;
-    EXPECT_EQ(back[0].search_fallback, 0) << columns;
+    EXPECT_EQ(back[0].search_fallback, columns >= 27 ? 2 : 0) << columns;
+    EXPECT_FALSE(back[0].zero_velocity) << columns;
   }
 }
 

@@ -131,7 +131,7 @@ const char* FramesCsvWriter::header() {
   return "#timestamp [ns],camera,landmarks,predicted_visible,searched,matched,updated,initialized,ransac_inliers,"
          "t_predict [ms],t_match [ms],t_ransac [ms],t_update [ms],t_init [ms],t_map [ms],t_total [ms],"
          "refused,nis,nis_count,health,reset,budget_hit,budget_skipped,t_search [ms],absolute_updates,"
-         "absolute_rejected,search_fallback";
+         "absolute_rejected,search_fallback,zero_velocity";
 }
 
 FramesCsvWriter::FramesCsvWriter(const std::string& path) : file_(path), last_flush_(std::chrono::steady_clock::now()) {
@@ -148,7 +148,7 @@ void FramesCsvWriter::write(const FrameStats& s) {
        << ',' << format_double(s.t_total_ms) << ',' << s.refused << ',' << format_double(s.nis) << ',' << s.nis_count
        << ',' << s.health << ',' << (s.reset ? 1 : 0) << ',' << (s.budget_hit ? 1 : 0) << ',' << s.budget_skipped << ','
        << format_double(s.t_search_ms) << ',' << s.absolute_updates << ',' << s.absolute_rejected << ','
-       << s.search_fallback << '\n';
+       << s.search_fallback << ',' << (s.zero_velocity ? 1 : 0) << '\n';
   const auto now = std::chrono::steady_clock::now();
   if (!out_ || now - last_flush_ >= std::chrono::seconds(1)) {
     last_flush_ = now;
@@ -171,8 +171,9 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     std::int64_t n[9];
     double ms[7];
     // 16 columns (files before the health columns), 21 (before the search budget's), 24 (before the absolute
-    // sensors' counters), 26 (before the search fallback's) or 27.
-    bool ok = f.size() == 16 || f.size() == 21 || f.size() == 24 || f.size() == 26 || f.size() == 27;
+    // sensors' counters), 26 (before the search fallback's), 27 (before the zero-velocity flag's) or 28.
+    bool ok = f.size() == 16 || f.size() == 21 || f.size() == 24 || f.size() == 26 || f.size() == 27 ||
+              f.size() == 28;
     for (size_t k = 0; ok && k < 9; ++k) ok = parse_int64(f[k], n[k]);
     for (size_t k = 0; ok && k < 7; ++k) ok = parse_double(f[9 + k], ms[k]);
     std::int64_t refused = 0, nis_count = 0, health = 0, reset = 0;
@@ -189,10 +190,12 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     }
     if (ok && f.size() >= 26) ok = parse_int64(f[24], abs_updates) && parse_int64(f[25], abs_rejected);
     std::int64_t fallback = 0;
-    if (ok && f.size() == 27) ok = parse_int64(f[26], fallback);
+    if (ok && f.size() >= 27) ok = parse_int64(f[26], fallback);
+    std::int64_t zero_velocity = 0;
+    if (ok && f.size() == 28) ok = parse_int64(f[27], zero_velocity);
     if (!ok) {
-      throw IoError(fmt::format("{}:{}: expected 27 numeric columns ({}) or the first 26, 24, 21 or 16 of them", path,
-                                in.line_number(), FramesCsvWriter::header()));
+      throw IoError(fmt::format("{}:{}: expected 28 numeric columns ({}) or the first 27, 26, 24, 21 or 16 of them",
+                                path, in.line_number(), FramesCsvWriter::header()));
     }
     s.t = n[0];
     int* counts[] = {&s.camera, &s.landmarks, &s.predicted_visible, &s.searched, &s.matched,
@@ -212,6 +215,7 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
     s.absolute_updates = static_cast<int>(abs_updates);
     s.absolute_rejected = static_cast<int>(abs_rejected);
     s.search_fallback = static_cast<int>(fallback);
+    s.zero_velocity = zero_velocity != 0;
     rows.push_back(s);
   }
   // The writer starts every file with its header: a file without a line is truncated, not a run of no frame.

@@ -103,6 +103,7 @@ struct FrameStats {
   int absolute_updates = 0;  // absolute position/pose fixes applied since the previous frame (and gated out)
   int absolute_rejected = 0;
   int search_fallback = 0;  // of predicted_visible: admitted although their box exceeded max_search_size_px2
+  bool zero_velocity = false;  // a zero-velocity update followed the frame (zero_velocity)
 };
 
 /// Streams frames.csv: a header line then one row per frame (t in ns, counts, timings in ms), into frames.csv.tmp

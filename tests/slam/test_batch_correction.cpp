@@ -16,7 +16,6 @@
 namespace rtslam::slam {
 namespace {
 
-
 // A constant-velocity robot with one camera, four AHP landmarks initialized at 2 m (prior) while they are at
 // 1–1.4 m, then the robot translates sideways by 0.2 m: their measurements are far from the prediction.
 struct Scene {

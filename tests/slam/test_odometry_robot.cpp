@@ -220,13 +220,7 @@ TEST(Map, ScaleLengthsChangesMeansCovarianceAndBasisLikeTheClosedForm) {
   so.nullspace_dim = Robot::kNullspaceDim;
   Map& map = world.add_map(so);
   auto r = std::make_unique<OdometryRobot>(models::OdometryParams{});
-  models::CameraIntrinsics in;
-  in.width = 640;
-  in.height = 480;
-  in.fx = in.fy = 400.0;
-  in.cx = 320.0;
-  in.cy = 240.0;
-  Sensor& cam = r->add_sensor(std::make_unique<PinholeSensor>("cam0", in, math::Pose{}));
+  Sensor& cam = r->add_sensor(std::make_unique<PinholeSensor>("cam0", support::vga_camera(), math::Pose{}));
   Eigen::VectorXd x0(7);
   x0 << 0.7, -0.4, 0.2, math::quat_to_wxyz(math::exp_so3(Eigen::Vector3d(0.1, -0.3, 0.2)));
   Robot& robot = map.add_robot(std::move(r), x0, 1e-3 * Eigen::MatrixXd::Identity(6, 6), 0);

@@ -13,7 +13,6 @@
 namespace rtslam::slam {
 namespace {
 
-
 // Adds a sensor to `robot` with a counting data manager; returns the manager.
 CountingDataManager& add_counted(Robot& robot, std::unique_ptr<Sensor> sensor) {
   Sensor& s = robot.add_sensor(std::move(sensor));

@@ -266,6 +266,11 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
   target.robot = robot.get();
   std::unique_ptr<slam::RobotStarter> starter = entry.starter(c, target);
   target.starter = starter.get();
+  if (o.zero_velocity.enabled && robot->rest_rows() <= 0) {  // refused before the System holds the robot
+    throw ConfigError(fmt::format("zero_velocity: robot '{}' has no velocity in its state to set to 0; turn "
+                                  "zero_velocity off for it",
+                                  robot->name()));
+  }
   target.input_id = b.system->add_robot(std::move(robot), std::move(starter));
   if (o.planar_motion.enabled) {  // one hook for the system, each robot with its own options
     if (b.planar_motion == nullptr) {
@@ -279,6 +284,7 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
     if (b.zero_velocity == nullptr) {
       auto hook = std::make_unique<strategies::ZeroVelocityUpdater>();
       b.zero_velocity = hook.get();
+      b.system->add_observer(*hook);  // it forgets a robot's rest when the robot restarts
       b.system->add_hook(std::move(hook));
     }
     b.zero_velocity->add_robot(*target.robot, o.zero_velocity);

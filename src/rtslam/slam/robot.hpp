@@ -186,6 +186,8 @@ class InertialRobot final : public Robot {
   static constexpr double kRestAccel = 4.0;  // m/s²
 
  private:
+  /// A restart forgets a rest verdict given before it.
+  void restarted() override { at_rest_ = false; }
   struct Sample {
     TimeNs t;
     models::ImuMeasurement m;

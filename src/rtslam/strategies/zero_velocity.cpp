@@ -48,6 +48,9 @@ YAML::Node zero_velocity_to_yaml(const ZeroVelocityOptions& o) {
 
 void ZeroVelocityUpdater::add_robot(const slam::Robot& robot, const ZeroVelocityOptions& options) {
   options.validate();
+  for (const Held& h : held_) {
+    if (h.robot == &robot) throw ConfigError(fmt::format("zero_velocity: robot '{}' added twice", robot.name()));
+  }
   // v = 0 (robot blocks [p q v ...]: v at tangent rows 6..8; the constant-velocity robot also ω = 0 at 9..11).
   const int m = robot.rest_rows();
   if (m <= 0 || 6 + m > robot.layout().tangent_size()) {
@@ -147,8 +150,7 @@ void ZeroVelocityUpdater::after_image(slam::Map& map, slam::Robot& robot, int se
   }
   std::sort(last.begin(), last.end(), [](const Matched& a, const Matched& b) { return a.id < b.id; });
   disparity_ = -1.0;
-  if (still_.size() <= k) still_.resize(k + 1);
-  Verdict& still = still_[k];
+  Verdict& still = held.verdict;
   if (static_cast<int>(displacements_.size()) >= o.min_matches) {
     auto mid = displacements_.begin() + static_cast<std::ptrdiff_t>(displacements_.size() / 2);
     std::nth_element(displacements_.begin(), mid, displacements_.end());
@@ -175,6 +177,18 @@ void ZeroVelocityUpdater::after_image(slam::Map& map, slam::Robot& robot, int se
     logger("slam")->warn("t = {:.3f} s: zero velocity: the filter refused the update of robot '{}' ({}); counted, "
                          "later refusals are not logged",
                          to_seconds(t), robot.name(), filter::to_string(r.status));
+  }
+}
+
+void ZeroVelocityUpdater::on_start(const slam::Robot& robot, const slam::RobotStart& /*start*/) {
+  const auto it = std::find_if(held_.begin(), held_.end(), [&](const Held& h) { return h.robot == &robot; });
+  if (it == held_.end()) return;
+  it->verdict = Verdict{};
+  it->last_t = std::numeric_limits<TimeNs>::min();
+  for (const auto& sensor : robot.sensors()) {
+    if (sensor->id() >= 0 && static_cast<std::size_t>(sensor->id()) < last_z_.size()) {
+      last_z_[static_cast<std::size_t>(sensor->id())].clear();
+    }
   }
 }
 

@@ -37,20 +37,26 @@ void read_zero_velocity(YamlMap section, ZeroVelocityOptions& o);
 YAML::Node zero_velocity_to_yaml(const ZeroVelocityOptions& o);
 
 /// One hook per System; each robot to be held at rest is added with its own options (a robot not added is left
-/// alone). The image test runs per camera (each keeps its previous frame's matches); the update is applied at most
-/// once per robot and time (a stereo pair's two images are two steps of one time: telling the filter twice would
-/// divide the std by √2).
-class ZeroVelocityUpdater final : public slam::StepHook {
+/// alone). The image test compares each camera's frame with that camera's previous one; the robot's verdict is the
+/// latest judged by any of its cameras (a camera that now sees motion ends a rest another one saw earlier). The update
+/// is applied at most once per robot and time (a stereo pair's two images are two steps of one time: telling the
+/// filter twice would divide the std by √2). As an Observer (System::add_observer) it forgets a robot's verdict and
+/// its cameras' previous frames when the robot restarts.
+class ZeroVelocityUpdater final : public slam::StepHook, public slam::Observer {
  public:
-  /// Updates `robot` at rest with `options` (validated; `enabled` is not looked at). Before the run.
+  /// Updates `robot` at rest with `options` (validated; `enabled` is not looked at). Before the run. ConfigError
+  /// for a robot without rate states (Robot::rest_rows() = 0) or added twice.
   void add_robot(const slam::Robot& robot, const ZeroVelocityOptions& options);
   void after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor, const slam::RawData& raw,
                   const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats) override;
   /// What after_step does with one camera's image at time t once its matches are known (`matches`: the frame's
   /// visible observations, ActiveSearchDataManager::last_frame()).
   void after_image(slam::Map& map, slam::Robot& robot, int sensor_id, TimeNs t,
-                   std::span<const ActiveSearchDataManager::FrameMatch> matches, const RingBuffer<slam::ImuData>& inputs,
-                   slam::FrameStats& stats);
+                   std::span<const ActiveSearchDataManager::FrameMatch> matches,
+                   const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats);
+  void on_step(const slam::StepReport& /*step*/) override {}
+  /// A robot (re)started: its verdict, its last update's time and its cameras' previous frames are forgotten.
+  void on_start(const slam::Robot& robot, const slam::RobotStart& start) override;
   long updates() const { return updates_; }
   /// Updates the filter refused (the first is logged as a warning).
   long refused() const { return refused_; }
@@ -59,9 +65,16 @@ class ZeroVelocityUpdater final : public slam::StepHook {
   double last_disparity_px() const { return disparity_; }
 
  private:
+  // The images' latest verdict and its time, kept through frames with too few matches to judge for at most
+  // `window` s.
+  struct Verdict {
+    bool still = false;
+    TimeNs t = 0;
+  };
   struct Held {
     const slam::Robot* robot = nullptr;
     ZeroVelocityOptions options;
+    Verdict verdict;
     TimeNs last_t = std::numeric_limits<TimeNs>::min();  // the time of its latest update
     Eigen::MatrixXd H, R;
     Eigen::VectorXd y;
@@ -76,13 +89,6 @@ class ZeroVelocityUpdater final : public slam::StepHook {
     Eigen::Vector2d z;
   };
   std::vector<std::vector<Matched>> last_z_;
-  // Per sensor id: the images' latest verdict and its time, kept through frames with too few matches to judge for
-  // at most `window` s.
-  struct Verdict {
-    bool still = false;
-    TimeNs t = 0;
-  };
-  std::vector<Verdict> still_;
   std::vector<double> displacements_;
   double disparity_ = -1.0;
   long updates_ = 0, refused_ = 0;

@@ -7,6 +7,10 @@
 
 #include <libdeflate.h>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace rtslam::io {
 namespace {
 
@@ -42,9 +46,28 @@ bool unfilter_rows(const unsigned char* filtered, int width, int height, cv::Mat
       case 0:
         std::memcpy(dst, src, w);
         break;
-      case 1: {  // Sub
+      case 1: {  // Sub: the row is the running sum (mod 256) of its bytes
+        std::size_t x = 0;
         unsigned left = 0;
-        for (std::size_t x = 0; x < w; ++x) left = dst[x] = static_cast<unsigned char>(src[x] + left);
+#if defined(__SSE2__)
+        // 16 bytes at a time (EuRoC's images filter every row with Sub; the byte-by-byte chain was ~15 % of their
+        // decoding): the block's own prefix sum in four shifted adds, plus the previous block's last byte in every
+        // lane. Only that broadcast (3 shuffles) chains one block to the next.
+        __m128i carry = _mm_setzero_si128();
+        for (; x + 16 <= w; x += 16) {
+          __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + x));
+          v = _mm_add_epi8(v, _mm_slli_si128(v, 1));
+          v = _mm_add_epi8(v, _mm_slli_si128(v, 2));
+          v = _mm_add_epi8(v, _mm_slli_si128(v, 4));
+          v = _mm_add_epi8(v, _mm_slli_si128(v, 8));
+          v = _mm_add_epi8(v, carry);
+          _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + x), v);
+          const __m128i hi = _mm_shufflehi_epi16(_mm_unpackhi_epi8(v, v), 0xFF);  // words 4..7: byte 15 twice
+          carry = _mm_shuffle_epi32(hi, 0xFF);
+        }
+        if (x > 0) left = dst[x - 1];
+#endif
+        for (; x < w; ++x) left = dst[x] = static_cast<unsigned char>(src[x] + left);
         break;
       }
       case 2:  // Up

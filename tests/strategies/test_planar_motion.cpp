@@ -160,6 +160,27 @@ TEST(PlanarMotion, OnlyTheRobotsAddedAndOnlyAfterImages) {
   EXPECT_EQ(u.updates(), 1);
 }
 
+TEST(PlanarMotion, ARestartedRobotIsToldAgainAtTheSameTimeOnTheSamePlane) {
+  OneRobot r;
+  PlanarMotionUpdater u;
+  u.add_robot(*r.robot, PlanarMotionOptions{});
+  RingBuffer<slam::ImuData> no_inputs{4};
+  slam::FrameStats stats;
+  const slam::PinholeSensor cam = some_camera();
+  u.after_step(*r.map, *r.robot, cam, raw_at(0), no_inputs, stats);
+  r.set(Vector3d(0.0, 0.0, 1.0), Eigen::Quaterniond::Identity(), 0.04, 0.09);
+  u.after_step(*r.map, *r.robot, cam, raw_at(50'000'000), no_inputs, stats);
+  EXPECT_EQ(u.updates(), 1);
+  // The health monitor restarts the robot at 50 ms (System::start) and replays that time's image: the new state is
+  // told, on the plane of the first image.
+  r.set(Vector3d(0.0, 0.0, 1.0), Eigen::Quaterniond::Identity(), 0.04, 0.09);
+  u.on_start(*r.robot, slam::RobotStart{});
+  u.after_step(*r.map, *r.robot, cam, raw_at(50'000'000), no_inputs, stats);
+  EXPECT_EQ(u.updates(), 2);
+  EXPECT_LT(r.robot->pose().p.z(), 1.0);
+  EXPECT_LT((u.plane(*r.robot)->p0 - Vector3d::Zero()).norm(), 1e-12);
+}
+
 TEST(PlanarMotionOptions, BadValuesAndUnknownKeysAreErrorsNamingTheKey) {
   const auto error_of = [](const std::string& yaml) -> std::string {
     try {

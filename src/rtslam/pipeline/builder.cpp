@@ -276,6 +276,7 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
     if (b.planar_motion == nullptr) {
       auto hook = std::make_unique<strategies::PlanarMotionUpdater>();
       b.planar_motion = hook.get();
+      b.system->add_observer(*hook);  // a restarted robot is told the plane again at the restart's time
       b.system->add_hook(std::move(hook));
     }
     b.planar_motion->add_robot(*target.robot, o.planar_motion);

@@ -126,4 +126,10 @@ void PlanarMotionUpdater::after_step(slam::Map& map, slam::Robot& robot, const s
   }
 }
 
+void PlanarMotionUpdater::on_start(const slam::Robot& robot, const slam::RobotStart& /*start*/) {
+  for (Held& h : held_) {
+    if (h.robot == &robot) h.last_t = std::numeric_limits<TimeNs>::min();
+  }
+}
+
 }  // namespace rtslam::strategies

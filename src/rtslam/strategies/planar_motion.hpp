@@ -18,6 +18,7 @@
 // then pulls back. Not with the observability-constrained filter (slam/consistency: oc), whose basis keeps the world's
 // tilt and height unobservable, which this measures, nor with an absolute sensor that aligns (moves) the world frame
 // (ImageSlamOptions::validate refuses both).
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -49,13 +50,17 @@ void planar_motion_measurement(const Eigen::Vector3d& p, const Eigen::Matrix3d& 
 
 /// One hook per System; each robot that should be held on its plane is added with its own options (a robot not
 /// added is left alone). Acts on camera images only (not on absolute fixes), once per robot and time (a stereo
-/// pair's two images are two steps of one time: telling the filter twice would halve the stds).
-class PlanarMotionUpdater final : public slam::StepHook {
+/// pair's two images are two steps of one time: telling the filter twice would halve the stds). As an Observer
+/// (System::add_observer) it tells a restarted robot again at the restart's time (the plane itself is kept).
+class PlanarMotionUpdater final : public slam::StepHook, public slam::Observer {
  public:
   /// Holds `robot` on its plane with `options` (validated; `enabled` is not looked at). Before the run.
   void add_robot(const slam::Robot& robot, const PlanarMotionOptions& options);
   void after_step(slam::Map& map, slam::Robot& robot, const slam::Sensor& sensor, const slam::RawData& raw,
                   const RingBuffer<slam::ImuData>& inputs, slam::FrameStats& stats) override;
+  void on_step(const slam::StepReport& /*step*/) override {}
+  /// A robot (re)started: its next image is told the plane even at the time of its last update.
+  void on_start(const slam::Robot& robot, const slam::RobotStart& start) override;
   long updates() const { return updates_; }
   /// Updates the filter refused (the first is logged as a warning).
   long refused() const { return refused_; }
@@ -72,7 +77,7 @@ class PlanarMotionUpdater final : public slam::StepHook {
     PlanarMotionOptions options;
     Eigen::Vector3d up;  // options.up normalized
     std::optional<Plane> plane;
-    TimeNs last_t = 0;  // the time of its latest update
+    TimeNs last_t = std::numeric_limits<TimeNs>::min();  // the time of its latest update
     Eigen::MatrixXd H, R;
     Eigen::VectorXd y;
   };

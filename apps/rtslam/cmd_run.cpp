@@ -490,7 +490,7 @@ void run_dataset(const RunOptions& ro) {
   pipeline::ImageSlamResult result;
   bool interrupted = false;
   nlohmann::json summary;
-  std::string accuracy_line, display_line, calibration_line, realtime_line, budget_line, fallback_line;
+  std::string accuracy_line, display_line, calibration_line, realtime_line, budget_line, fallback_line, rest_line;
   std::string groundtruth_error;  // --groundtruth given and not usable: the run fails after writing its outputs
   std::vector<double> times;
   io::Percentiles timing;
@@ -607,7 +607,11 @@ void run_dataset(const RunOptions& ro) {
       if (o.position_sensor.enabled || o.pose_sensor.enabled) {
         summary["absolute"] = {{"corrections_applied", abs_updates}, {"corrections_rejected", abs_rejected}};
       }
-      if (o.zero_velocity.enabled) summary["zero_velocity"] = {{"frames_with_update", at_rest}};
+      if (o.zero_velocity.enabled) {
+        summary["zero_velocity"] = {{"frames_with_update", at_rest}};
+        rest_line = fmt::format("  zero velocity: v = 0 fused after {} of {} frame(s) (zero_velocity)\n", at_rest,
+                                result.frames.size());
+      }
       if (o.robot == "odometry") {
         summary["odometry"] = {{"rescale", result.odometry_rescale},
                                {"rescales", result.odometry_rescales},
@@ -770,7 +774,7 @@ void run_dataset(const RunOptions& ro) {
                              "factor {:.4f} in all\n",
                              result.odometry_rescales, result.odometry_rescale_product)
                : std::string()),
-      calibration_line, realtime_line + budget_line + fallback_line, display_line, ro.out);
+      calibration_line, realtime_line + budget_line + fallback_line + rest_line, display_line, ro.out);
   std::cout << std::flush;
   if (const int sig = RunSignals::received()) {
     std::cerr << fmt::format(

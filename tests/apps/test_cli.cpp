@@ -701,6 +701,9 @@ TEST(Cli, ZeroVelocityUpdatesAreFlaggedInFramesCsvAndCountedInTheSummary) {
   // The 4.7 s standstill: most frames at rest (the first ones have no previous frame or too short an IMU window).
   EXPECT_GT(flagged, frames / 2) << frames;
   EXPECT_EQ(summary["zero_velocity"]["frames_with_update"], flagged) << summary.dump(2);
+  EXPECT_NE(r.out.find(fmt::format("zero velocity: v = 0 fused after {} of {} frame(s)", flagged, frames)),
+            std::string::npos)
+      << r.out;
 }
 
 TEST(Cli, AGroundTruthFileThatMatchesNothingFailsTheRunAfterItsOutputs) {

@@ -296,9 +296,12 @@ class RunDisplays {
   std::vector<double> observer_us_;
 };
 
-io::FrameStats to_io(const slam::FrameStats& s) {
+/// `camera`: the rig's index of the frame's camera (with several cameras, a frame merges one time's images: the
+/// first of them).
+io::FrameStats to_io(const slam::FrameStats& s, int camera) {
   io::FrameStats f;
   f.t = s.t;
+  f.camera = camera;
   f.landmarks = s.landmarks_in_map;
   f.predicted_visible = s.visible;
   f.searched = s.searched;
@@ -354,7 +357,7 @@ void run_demo(const RunOptions& ro) {
   io::write_tum(ro.out + "/groundtruth.txt", groundtruth);
   {
     io::FramesCsvWriter frames(ro.out + "/frames.csv");
-    for (const auto& s : result.frames) frames.write(to_io(s));
+    for (const auto& s : result.frames) frames.write(to_io(s, 0));
     frames.close();
   }
   std::vector<double> times;
@@ -483,7 +486,7 @@ void run_dataset(const RunOptions& ro) {
   io::FramesCsvWriter frames_csv(ro.out + "/frames.csv");
   const auto observer = [&](const pipeline::ImageSlamFrame& f) {
     trajectory_csv.write(*f.pose);
-    frames_csv.write(to_io(*f.stats));
+    frames_csv.write(to_io(*f.stats, o.camera_indices().front()));
     if (displays.active()) displays.on_frame(f);
   };
   RunSignals signals;

@@ -107,7 +107,7 @@ cv::Mat opencv_decode(const Bytes& png) {
 
 TEST(PngGrey, EveryFilterTypeGivesLibpngsPixels) {
   // Widths below, at and between multiples of 16 (the Sub filter's vector blocks and their scalar tail).
-  for (const auto& [w, h] : {std::pair{1, 1}, {7, 5}, {16, 6}, {33, 7}, {64, 48}, {752, 31}}) {
+  for (const auto& [w, h] : {std::pair{1, 1}, {7, 5}, {16, 6}, {33, 7}, {47, 6}, {64, 48}, {752, 31}}) {
     const cv::Mat img = textured(w, h);
     for (int parts : {1, 3}) {
       PngSpec spec;

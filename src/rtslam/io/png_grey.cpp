@@ -50,9 +50,10 @@ bool unfilter_rows(const unsigned char* filtered, int width, int height, cv::Mat
         std::size_t x = 0;
         unsigned left = 0;
 #if defined(__SSE2__)
-        // 16 bytes at a time (EuRoC's images filter every row with Sub; the byte-by-byte chain was ~15 % of their
-        // decoding): the block's own prefix sum in four shifted adds, plus the previous block's last byte in every
-        // lane. Only that broadcast (3 shuffles) chains one block to the next.
+        // 16 bytes at a time (the rendered sequences, e.g. /work/data/v101r, filter every row with Sub, and its
+        // byte-by-byte chain was ~15 % of their decoding; real EuRoC images are mostly Paeth and Average): the
+        // block's own prefix sum in four shifted adds, plus the previous block's last byte in every lane. Only that
+        // broadcast (3 shuffles) chains one block to the next.
         __m128i carry = _mm_setzero_si128();
         for (; x + 16 <= w; x += 16) {
           __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + x));

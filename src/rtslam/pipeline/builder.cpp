@@ -276,8 +276,8 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
     if (b.planar_motion == nullptr) {
       auto hook = std::make_unique<strategies::PlanarMotionUpdater>();
       b.planar_motion = hook.get();
-      b.system->add_observer(*hook);  // a restarted robot is told the plane again at the restart's time
       b.system->add_hook(std::move(hook));
+      b.system->add_observer(*b.planar_motion);  // a restarted robot is told the plane again at the restart's time
     }
     b.planar_motion->add_robot(*target.robot, o.planar_motion);
   }
@@ -285,8 +285,8 @@ BuiltRobot Registry::add_robot_to(BuiltSystem& b, const BuildContext& c) const {
     if (b.zero_velocity == nullptr) {
       auto hook = std::make_unique<strategies::ZeroVelocityUpdater>();
       b.zero_velocity = hook.get();
-      b.system->add_observer(*hook);  // it forgets a robot's rest when the robot restarts
       b.system->add_hook(std::move(hook));
+      b.system->add_observer(*b.zero_velocity);  // it forgets a robot's rest when the robot restarts
     }
     b.zero_velocity->add_robot(*target.robot, o.zero_velocity);
   }

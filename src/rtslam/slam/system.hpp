@@ -96,6 +96,8 @@ class System {
   /// its proprioceptive inputs are fed with sensor_id = the returned input id.
   int add_robot(std::unique_ptr<Robot> robot, std::unique_ptr<RobotStarter> starter);
   void add_observer(Observer& observer) { observers_.push_back(&observer); }
+  /// The observers told of every step and (re)start, in the order added.
+  const std::vector<Observer*>& observers() const { return observers_; }
   void add_hook(std::unique_ptr<StepHook> hook) { hooks_.push_back(std::move(hook)); }
 
   /// Feeds one datum (see the header comment). Throws DataError when time goes backwards within a stream, the

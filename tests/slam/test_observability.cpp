@@ -12,6 +12,7 @@
 #include "rtslam/slam/landmark_init.hpp"
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/observation.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::slam {
 namespace {
@@ -67,15 +68,7 @@ TEST(Observability, ConstantVelocityPredictionMapsTheBasisOntoTheBasisAtThePredi
 }
 
 models::CameraIntrinsics camera() {
-  models::CameraIntrinsics c;
-  c.width = 752;
-  c.height = 480;
-  c.fx = c.fy = 458.0;
-  c.cx = 367.0;
-  c.cy = 248.0;
-  c.model = models::DistortionModel::RadTan;
-  c.coeffs = {-0.28, 0.07, 2e-4, 2e-5};
-  return c;
+  return support::euroc_camera_radtan();
 }
 
 struct InertialMap {

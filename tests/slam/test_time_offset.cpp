@@ -11,6 +11,7 @@
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/observation.hpp"
 #include "rtslam/slam/sensor.hpp"
+#include "support/test_camera.hpp"
 #include "support/jacobian_check.hpp"
 
 namespace rtslam::slam {
@@ -21,15 +22,7 @@ using Eigen::Vector3d;
 using Eigen::VectorXd;
 
 models::CameraIntrinsics offset_camera() {
-  models::CameraIntrinsics c;
-  c.width = 752;
-  c.height = 480;
-  c.fx = c.fy = 458.0;
-  c.cx = 367.0;
-  c.cy = 248.0;
-  c.model = models::DistortionModel::RadTan;
-  c.coeffs = {-0.28, 0.07, 2e-4, 2e-5};
-  return c;
+  return support::euroc_camera_radtan();
 }
 
 // A moving, turning robot with biases and gravity off the axes.

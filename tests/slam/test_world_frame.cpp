@@ -16,6 +16,7 @@
 #include "rtslam/slam/observation.hpp"
 #include "rtslam/slam/odometry_robot.hpp"
 #include "rtslam/slam/world_frame.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::slam {
 namespace {
@@ -27,13 +28,7 @@ using Eigen::VectorXd;
 using I = models::InertialIndex;
 
 models::CameraIntrinsics frame_camera() {
-  models::CameraIntrinsics c;
-  c.width = 752;
-  c.height = 480;
-  c.fx = c.fy = 458.0;
-  c.cx = 367.0;
-  c.cy = 248.0;
-  return c;
+  return support::euroc_camera();
 }
 
 struct TestMap {

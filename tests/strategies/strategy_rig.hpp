@@ -14,18 +14,9 @@
 #include "rtslam/slam/observation.hpp"
 #include "rtslam/slam/robot.hpp"
 #include "rtslam/slam/sensor.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::strategies::testing {
-
-inline models::CameraIntrinsics rig_camera() {
-  models::CameraIntrinsics c;
-  c.width = 320;
-  c.height = 240;
-  c.fx = c.fy = 250.0;
-  c.cx = 159.5;
-  c.cy = 119.5;
-  return c;
-}
 
 /// Rotation of the robot about its y axis (the camera's vertical axis) by `yaw_rad`.
 inline Eigen::Quaterniond yaw(double yaw_rad) {
@@ -41,7 +32,7 @@ struct StrategyRig {
   explicit StrategyRig(filter::StateOptions state_options = {}) {
     map = &world.add_map(state_options);
     auto r = std::make_unique<slam::ConstantVelocityRobot>(models::ConstantVelocityParams{});
-    sensor = &r->add_sensor(std::make_unique<slam::PinholeSensor>("cam", rig_camera(), math::Pose::identity()));
+    sensor = &r->add_sensor(std::make_unique<slam::PinholeSensor>("cam", support::qvga_camera(), math::Pose::identity()));
     Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
     x0.segment<4>(3) = math::quat_to_wxyz(Eigen::Quaterniond::Identity());
     // Zero covariance: the pose is the gauge, predictions are exact and landmarks uncorrelated with the robot.

@@ -20,6 +20,7 @@
 #include "rtslam/strategies/map_policies.hpp"
 #include "rtslam/vision/warp.hpp"
 #include "rtslam/vision/zncc.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::strategies {
 namespace {
@@ -42,13 +43,7 @@ vision::Image make_texture(std::uint64_t seed) {
 }
 
 models::CameraIntrinsics test_camera() {
-  models::CameraIntrinsics c;
-  c.width = 320;
-  c.height = 240;
-  c.fx = c.fy = 250.0;
-  c.cx = 159.5;
-  c.cy = 119.5;
-  return c;
+  return support::qvga_camera();
 }
 
 /// Renders the plane seen from camera pose T_WC (optical frame), bilinear texture lookup.

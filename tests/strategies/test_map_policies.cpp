@@ -259,7 +259,7 @@ TEST(MapSize, IsABudgetPerRobotInTheMap) {
   EXPECT_EQ(mm.limit(*rig.map), o.map_size);
   EXPECT_EQ(fill(), 5);
   auto r2 = std::make_unique<slam::ConstantVelocityRobot>(models::ConstantVelocityParams{});
-  r2->add_sensor(std::make_unique<slam::PinholeSensor>("cam2", testing::rig_camera(), math::Pose::identity()));
+  r2->add_sensor(std::make_unique<slam::PinholeSensor>("cam2", support::qvga_camera(), math::Pose::identity()));
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
   x0.segment<4>(3) = math::quat_to_wxyz(Eigen::Quaterniond::Identity());
   rig.map->add_robot(std::move(r2), x0, Eigen::MatrixXd::Zero(12, 12), 0);

@@ -135,6 +135,43 @@ TEST(ImageSlam, InertialRunWhoseImuEndsBeforeTheImagesSaysSo) {
   }
 }
 
+// Images that turn blank (one grey level) from `from` on: the camera covered.
+class BlankFrom final : public io::Source {
+ public:
+  BlankFrom(std::unique_ptr<io::Source> inner, TimeNs from) : inner_(std::move(inner)), from_(from) {}
+  std::optional<io::Measurement> next() override {
+    auto m = inner_->next();
+    if (m) {
+      if (auto* img = std::get_if<io::ImageFrame>(&*m); img && img->t >= from_) img->image.setTo(128);
+    }
+    return m;
+  }
+  const io::SourceStats& stats() const override { return inner_->stats(); }
+
+ private:
+  std::unique_ptr<io::Source> inner_;
+  TimeNs from_;
+};
+
+// The count of created landmarks is every landmark the run added, also when none is left at the end (the camera
+// covered for the last 2 s: the map is emptied and re-initialized, and no new landmark can be made).
+TEST(ImageSlam, CreatedLandmarksCountThoseRemovedBeforeTheEnd) {
+  if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
+  const ImageSlamOptions o = load_image_slam_config(kConfig);
+  io::DatasetOptions dopt;
+  dopt.use_imu = false;
+  io::Dataset ds = io::open_dataset("euroc:" + kEuroc, dopt);
+  const TimeNs first_image = 1403715273262142976;  // cam0's first image; 95 images at 20 Hz
+  ds.source = std::make_unique<BlankFrom>(std::move(ds.source), first_image + 2'700'000'000);
+  const ImageSlamResult r = run_image_slam(ds, o);
+  ASSERT_EQ(r.frames.size(), 95u);
+  EXPECT_EQ(r.landmarks_final, 0);
+  int initialized = 0;
+  for (const slam::FrameStats& f : r.frames) initialized += f.initialized;
+  EXPECT_GT(initialized, 15);
+  EXPECT_EQ(r.landmarks_created, initialized);
+}
+
 const std::string kMonoslam = RTSLAM_SOURCE_DIR "/../shared/datasets/monoslam-davison";
 
 

@@ -539,8 +539,8 @@ struct ImageSlam::Impl final : slam::Observer {
       result.time_offset_std_s = std::sqrt(map.state().cov(sensor.time_block())(0, 0));
     }
     const Eigen::Vector3d p_WS = sensor.pose_in_world(mean).p;
+    result.landmarks_created = map.landmarks_added();
     for (const auto& l : map.landmarks()) {
-      result.landmarks_created = std::max(result.landmarks_created, l->id() + 1);
       if (l->type() == slam::LandmarkType::EuclideanPoint) ++result.euclidean_final;
       const Eigen::Vector3d p = l->position(mean);
       result.landmark_ids.push_back(l->id());

@@ -130,7 +130,7 @@ struct ImageSlamResult {
   Trajectory estimate;  // T_WR per image, with the 6x6 pose covariance
   std::vector<slam::FrameStats> frames;
   int landmarks_final = 0;
-  int landmarks_created = 0;
+  int landmarks_created = 0;  // every landmark the run added to the map, removed ones included
   int euclidean_final = 0;
   int known_landmarks = 0;                      // known landmarks added at the first frame
   std::vector<int> landmark_ids;                // final map

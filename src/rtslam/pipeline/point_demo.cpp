@@ -118,8 +118,8 @@ PointDemoResult run_point_demo(const PointDemoOptions& o, sim::PointScene& scene
   }
   const slam::Map& map = system.map();
   result.landmarks_final = static_cast<int>(map.landmarks().size());
+  result.landmarks_created = map.landmarks_added();
   for (const auto& l : map.landmarks()) {
-    result.landmarks_created = std::max(result.landmarks_created, l->id() + 1);
     if (l->type() == slam::LandmarkType::EuclideanPoint) ++result.euclidean_final;
   }
   result.estimate.source = "rtslam demo estimate";

@@ -45,6 +45,8 @@ class Map {
   void remove_landmark(Landmark& lmk);
   const std::vector<std::unique_ptr<Landmark>>& landmarks() const { return landmarks_; }
   Landmark* find_landmark(int id) const;
+  /// Landmarks added since the map was made, removed ones included (ids are 0 .. landmarks_added() - 1).
+  int landmarks_added() const { return next_landmark_id_; }
   /// Changes the map's unit of length about the point `centre` (W): every position of the state (robots, landmarks,
   /// anchors) moves to centre + c (p − centre), c > 0, inverse distances are divided by c, directions, attitudes
   /// and unit-free states keep their values, and the covariance and the unobservable basis are transformed alike

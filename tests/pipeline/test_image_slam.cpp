@@ -172,6 +172,40 @@ TEST(ImageSlam, CreatedLandmarksCountThoseRemovedBeforeTheEnd) {
   EXPECT_EQ(r.landmarks_created, initialized);
 }
 
+// A run that ends before its robot could start says what the start still needed, or that no image was read.
+std::string start_error(const ImageSlamOptions& o, double start_offset_s, double duration_s) {
+  io::DatasetOptions dopt;
+  dopt.use_imu = true;
+  dopt.start_offset_s = start_offset_s;
+  dopt.duration_s = duration_s;
+  io::Dataset ds = io::open_dataset("euroc:" + kEuroc, dopt);
+  try {
+    run_image_slam(ds, o);
+  } catch (const DataError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(ImageSlam, ARunEndingBeforeTheStartSaysWhatTheStartNeeded) {
+  if (!std::filesystem::exists(kEuroc)) GTEST_SKIP() << "dataset " << kEuroc << " not found";
+  ImageSlamOptions o = load_image_slam_config(RTSLAM_SOURCE_DIR "/config/euroc_mono_imu.yaml");
+  // 0.3 s of input: 7 images, fewer than the visual-inertial start's window of 0.4 s.
+  std::string what = start_error(o, 0.0, 0.3);
+  EXPECT_NE(what.find("did not start over its 7 image(s) of camera 0 (1403715273.262 to 1403715273.562 s)"),
+            std::string::npos) << what;
+  EXPECT_NE(what.find("0.40 s of images for the visual-inertial start (imu/vi_init/window"), std::string::npos)
+      << what;
+  // Without the visual-inertial start: the IMU starts with the first image, and 0.5 s of it must precede one.
+  o.imu.vi_init.enabled = false;
+  what = start_error(o, 0.0, 0.3);
+  EXPECT_NE(what.find("0.50 s of IMU data before an image (imu/init_window; the IMU starts at 1403715273.262 s)"),
+            std::string::npos) << what;
+  // A window past the images (the IMU goes on for the whole flight, the images for 4.7 s): none read.
+  what = start_error(o, 100.0, 0.0);
+  EXPECT_NE(what.find("has no image of camera 0 (in the part of it read"), std::string::npos) << what;
+}
+
 const std::string kMonoslam = RTSLAM_SOURCE_DIR "/../shared/datasets/monoslam-davison";
 
 

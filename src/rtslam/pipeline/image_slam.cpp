@@ -459,7 +459,10 @@ struct ImageSlam::Impl final : slam::Observer {
                                  : nullptr;
     if (cam == nullptr) return true;
     if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
-    if (cam == camera) ++consumed;
+    if (cam == camera) {
+      if (consumed++ == 0) first_image_t = frame->t;
+      last_image_t = frame->t;
+    }
     auto d = system.spare<MatImage>();
     const std::optional<TimeNs> t_imu = add_checked(frame->t, t_d);
     if (!t_imu) {
@@ -494,8 +497,16 @@ struct ImageSlam::Impl final : slam::Observer {
                                     name, last_imu_t ? to_seconds(*last_imu_t) : 0.0, system.pending(),
                                     to_seconds(system.first_pending().value_or(0))));
       }
-      throw DataError(fmt::format("dataset '{}' has no image of camera {} that the filter could start from{}", name,
-                                  o.camera, inertial ? " (are the images covered by IMU data?)" : ""));
+      if (consumed == 0) {
+        throw DataError(fmt::format("dataset '{}' has no image of camera {} (in the part of it read: see --start-at, "
+                                    "--stop-after)",
+                                    name, camera->rig_index));
+      }
+      const std::string waiting = built.starter->waiting_for();
+      throw DataError(fmt::format("dataset '{}': the robot did not start over its {} image(s) of camera {} ({:.3f} to "
+                                  "{:.3f} s){}",
+                                  name, consumed, camera->rig_index, to_seconds(first_image_t),
+                                  to_seconds(last_image_t), waiting.empty() ? "" : ": it still needed " + waiting));
     }
     result.images_not_covered = stopped ? 0 : static_cast<int>(system.pending());
     if (result.images_not_covered > 0) {
@@ -584,6 +595,7 @@ struct ImageSlam::Impl final : slam::Observer {
   std::function<void(const ImageSlamFrame&)> observer;
   std::function<void(int, int)> progress;
   int n_total = 0, consumed = 0;
+  TimeNs first_image_t = 0, last_image_t = 0;  // of the images of `camera` read (the stream's clock)
   bool ended = false, stopped = false;
 };
 

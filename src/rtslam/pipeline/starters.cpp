@@ -73,7 +73,12 @@ void InertialStarter::started(slam::Map&, slam::Robot&, bool) {
 
 std::optional<slam::RobotStart> InertialStarter::imu_only(TimeNs t, const RingBuffer<slam::ImuData>& inputs,
                                                           std::string prefix) {
-  if (inputs.empty() || inputs.front().t > t - from_seconds(o_.init_window_s)) return std::nullopt;
+  if (inputs.empty() || inputs.front().t > t - from_seconds(o_.init_window_s)) {
+    waiting_for_ = fmt::format("{:.2f} s of IMU data before an image (imu/init_window; {})", o_.init_window_s,
+                               inputs.empty() ? std::string("no IMU sample yet")
+                                              : fmt::format("the IMU starts at {:.3f} s", to_seconds(inputs.front().t)));
+    return std::nullopt;
+  }
   const InertialStart s0 = initialize_inertial(imu_window(inputs), t, o_);
   slam::RobotStart s;
   s.x = s0.x;
@@ -113,7 +118,12 @@ std::optional<slam::RobotStart> InertialStarter::offer(const slam::RawData& datu
 std::optional<slam::RobotStart> InertialStarter::try_visual_inertial(const RingBuffer<slam::ImuData>& inputs) {
   const strategies::ViInitOptions& v = o_.vi_init;
   if (first_image_t_ < 0) first_image_t_ = window_.front().t;
-  if (window_.back().t - window_.front().t < from_seconds(v.window_s)) return std::nullopt;
+  if (window_.back().t - window_.front().t < from_seconds(v.window_s)) {
+    waiting_for_ = fmt::format("{:.2f} s of images for the visual-inertial start (imu/vi_init/window; {} image(s) over "
+                               "{:.2f} s)",
+                               v.window_s, window_.size(), to_seconds(window_.back().t - window_.front().t));
+    return std::nullopt;
+  }
   const std::vector<strategies::ImuWindowSample> imu = imu_window(inputs);
   views_.clear();
   for (const WindowImage& w : window_) {
@@ -138,6 +148,9 @@ std::optional<slam::RobotStart> InertialStarter::try_visual_inertial(const RingB
     return s;
   }
   logger("slam")->debug("visual-inertial start at t = {:.3f} s: {}", to_seconds(window_.front().t), r.reason);
+  waiting_for_ = fmt::format("a window the visual-inertial start accepts (the last one: {}), or {:.1f} s of failed "
+                             "windows before the IMU-only start (imu/vi_init/max_wait)",
+                             r.reason, v.max_wait_s);
   if (window_.back().t - first_image_t_ > from_seconds(v.max_window_s + v.max_wait_s)) {
     std::optional<slam::RobotStart> s =
         imu_only(window_.back().t, inputs, fmt::format("visual-inertial start failed for {:.1f} s ({}): IMU-only start; ",

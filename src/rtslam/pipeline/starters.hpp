@@ -70,6 +70,7 @@ class InertialStarter final : public slam::RobotStarter {
   void started(slam::Map& map, slam::Robot& robot, bool first) override;
   void restart() override;
   int skipped() const override { return skipped_; }
+  std::string waiting_for() const override { return waiting_for_; }
 
  private:
   std::optional<slam::RobotStart> imu_only(TimeNs t, const RingBuffer<slam::ImuData>& inputs, std::string prefix);
@@ -92,6 +93,7 @@ class InertialStarter final : public slam::RobotStarter {
   std::vector<std::unique_ptr<MatImage>> replay_;  // the window's images, as data to process after a start
   const slam::RawData* offered_ = nullptr;
   int skipped_ = 0;
+  std::string waiting_for_;  // why the last offer did not start the robot
 };
 
 /// The recent IMU samples as the start functions take them.

@@ -51,6 +51,9 @@ class RobotStarter {
   virtual void restart() {}
   /// Data offered and dropped so far (not replayed into the filter).
   virtual int skipped() const { return 0; }
+  /// While the robot has not started: what the starter still needs, for the message of a run that ends before the
+  /// start (e.g. "0.50 s of IMU data before an image (imu/init_window)"); empty when nothing in particular.
+  virtual std::string waiting_for() const { return {}; }
 };
 
 /// What an observer sees after each datum the filter processed. References are valid during the call only.

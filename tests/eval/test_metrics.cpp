@@ -322,3 +322,40 @@ TEST(Association, InterpolationEvaluatesTheReferenceAtTheEstimateTimes) {
   const auto [e_gap, g_gap] = associate(est, gapped, {.interpolate = true, .max_gap_s = 0.1});
   EXPECT_EQ(e_gap.poses.size(), 40u - 4u);  // t = 0.5025 .. 0.6525 s fall into the 0.2 s gap; 5 s is outside
 }
+
+// A standstill's alignment rests on its jitter: the warning says so (and suggests the first-pose alignment when the
+// rotation is the problem); a 20 s flight with 1 cm of noise is well determined and gets none.
+TEST(AlignmentWarning, AStandstillIsFlaggedAndAFlightIsNot) {
+  Rng rng(3);
+  Trajectory gt, est;
+  for (int i = 0; i < 95; ++i) {
+    StampedPose p;
+    p.t = 1'000'000'000 + i * 50'000'000LL;
+    p.p_WR = randn_vec<3>(rng, 0.002);
+    gt.poses.push_back(p);
+    p.p_WR += randn_vec<3>(rng, 0.001);
+    est.poses.push_back(p);
+  }
+  EvalOptions o;
+  o.with_rpe = false;
+  const EvalResult still = evaluate(est, gt, o);
+  EXPECT_GT(still.alignment_rotation_std_deg, kMaxAlignmentRotationStdDeg);
+  EXPECT_GT(still.sim3_scale_std, kMaxAlignmentScaleStd);
+  std::string w = alignment_warning(still);
+  EXPECT_NE(w.find("its rotation is uncertain by"), std::string::npos) << w;
+  EXPECT_NE(w.find("--align origin"), std::string::npos) << w;
+  EXPECT_NE(format_table(still, o).find(w), std::string::npos);
+  o.align = Alignment::Origin;  // no rotation fitted: only the Sim(3) scale is flagged
+  w = alignment_warning(evaluate(est, gt, o));
+  EXPECT_NE(w.find("the Sim(3) scale is uncertain by"), std::string::npos) << w;
+  EXPECT_EQ(w.find("--align origin"), std::string::npos) << w;
+
+  const Trajectory flight = test::wavy_trajectory(400);
+  Trajectory noisy = flight;
+  for (auto& p : noisy.poses) p.p_WR += randn_vec<3>(rng, 0.01);
+  o.align = Alignment::Se3;
+  const EvalResult moving = evaluate(noisy, flight, o);
+  EXPECT_LT(moving.alignment_rotation_std_deg, 0.1);
+  EXPECT_LT(moving.sim3_scale_std, 0.001);
+  EXPECT_TRUE(alignment_warning(moving).empty());
+}

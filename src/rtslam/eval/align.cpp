@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
@@ -167,6 +168,40 @@ Sim3 compute_alignment(const Trajectory& est, const Trajectory& gt, Alignment me
     case Alignment::None: return Sim3{};
   }
   return Sim3{};
+}
+
+AlignmentSpread alignment_spread(const Trajectory& aligned, const Trajectory& gt, Alignment method) {
+  if (method != Alignment::Se3 && method != Alignment::Sim3) {
+    throw DataError(fmt::format("alignment spread: {} is not a least-squares fit", to_string(method)));
+  }
+  if (aligned.poses.size() != gt.poses.size()) {
+    throw DataError(fmt::format("alignment spread: trajectories are not associated ({} vs {} poses)",
+                                aligned.poses.size(), gt.poses.size()));
+  }
+  const std::size_t n = aligned.poses.size();
+  const std::size_t params = method == Alignment::Sim3 ? 7 : 6;
+  if (3 * n <= params) throw DataError(fmt::format("alignment spread: {} poses fit no {} parameters", n, params));
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  double sse = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    mean += aligned.poses[i].p_WR;
+    sse += (gt.poses[i].p_WR - aligned.poses[i].p_WR).squaredNorm();
+  }
+  mean /= static_cast<double>(n);
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  double spread = 0.0;  // Σ|r|²
+  for (const auto& pose : aligned.poses) {
+    const Eigen::Vector3d r = pose.p_WR - mean;
+    J += r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose();
+    spread += r.squaredNorm();
+  }
+  const double sigma = std::sqrt(sse / static_cast<double>(3 * n - params));
+  const double lambda_min = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(J, Eigen::EigenvaluesOnly).eigenvalues()[0];
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  AlignmentSpread out;
+  out.rotation_std_deg = lambda_min > 0.0 ? sigma / std::sqrt(lambda_min) * 180.0 / std::numbers::pi : kInf;
+  out.scale_std = spread > 0.0 ? sigma / std::sqrt(spread) : kInf;
+  return out;
 }
 
 Trajectory apply_alignment(const Sim3& S, const Trajectory& est) {

@@ -46,4 +46,22 @@ Sim3 compute_alignment(const Trajectory& est, const Trajectory& gt, Alignment me
 /// δp' = s R δp (world-frame position error), δθ unchanged (right perturbation in the robot frame).
 Trajectory apply_alignment(const Sim3& S, const Trajectory& est);
 
+/// How well the positions determine an SE3 / Sim3 least-squares alignment, to first order with isotropic residuals:
+/// with the fit's residual variance per coordinate σ² = Σ|gt − S(est)|² / (3n − p) (p = 6 or 7 parameters), the
+/// standard deviation of the fitted rotation about its worst-determined axis is σ / sqrt(λ_min(J)), J = Σ (|r|² I −
+/// r rᵀ) the inertia of the centred aligned positions r, and the relative standard deviation of a Sim3 scale is
+/// σ / sqrt(Σ|r|²). Little motion against the residual (a standstill, a few millimetres of jitter) leaves both
+/// large: the fitted rotation and scale are then the residual's, and so are the ATE's rotation part and the scale
+/// error. `aligned`: the estimate after the alignment, associated with `gt`.
+struct AlignmentSpread {
+  double rotation_std_deg = 0.0;
+  double scale_std = 0.0;  // relative: std(s) / s
+};
+AlignmentSpread alignment_spread(const Trajectory& aligned, const Trajectory& gt, Alignment method);
+
+/// Above these the alignment says more about the residual than about the run (eval's warning): a degree of rotation
+/// and a percent of scale, the resolution at which ATE rotations and scale errors are compared.
+constexpr double kMaxAlignmentRotationStdDeg = 1.0;
+constexpr double kMaxAlignmentScaleStd = 0.01;
+
 }  // namespace rtslam::eval

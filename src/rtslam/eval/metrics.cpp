@@ -180,7 +180,9 @@ EvalResult evaluate(const Trajectory& est, const Trajectory& gt, const EvalOptio
   r.alignment = compute_alignment(est_sync, gt_sync, options.align);
   if (est_sync.poses.size() >= 3) {
     try {
-      r.sim3_scale = compute_alignment(est_sync, gt_sync, Alignment::Sim3).s;
+      const Sim3 S = compute_alignment(est_sync, gt_sync, Alignment::Sim3);
+      r.sim3_scale = S.s;
+      r.sim3_scale_std = alignment_spread(apply_alignment(S, est_sync), gt_sync, Alignment::Sim3).scale_std;
     } catch (const DataError&) {
       r.sim3_scale = std::nan("");
     }
@@ -192,6 +194,9 @@ EvalResult evaluate(const Trajectory& est, const Trajectory& gt, const EvalOptio
     r.path_length_m += (gt_sync.poses[i].p_WR - gt_sync.poses[i - 1].p_WR).norm();
   const Trajectory est_aligned = apply_alignment(r.alignment, est_sync);
   r.ate = compute_ate(est_aligned, gt_sync);
+  if (options.align == Alignment::Se3 || options.align == Alignment::Sim3) {
+    r.alignment_rotation_std_deg = alignment_spread(est_aligned, gt_sync, options.align).rotation_std_deg;
+  }
   if (options.with_rpe) {
     try {
       r.rpe = compute_rpe(est_aligned, gt_sync, options.rpe);
@@ -223,6 +228,8 @@ nlohmann::json to_json(const EvalResult& r, const EvalOptions& o, bool with_seri
                                   r.alignment.R(2, 0), r.alignment.R(2, 1), r.alignment.R(2, 2)}},
                     {"translation", {r.alignment.t.x(), r.alignment.t.y(), r.alignment.t.z()}}};
   j["sim3_scale"] = number_or_null(r.sim3_scale);
+  j["sim3_scale_std"] = number_or_null(r.sim3_scale_std);
+  j["alignment"]["rotation_std_deg"] = number_or_null(r.alignment_rotation_std_deg);
   j["duration_s"] = r.duration_s;
   j["path_length_m"] = r.path_length_m;
   j["ate"] = {{"trans_m", to_json(r.ate.trans_m)}, {"rot_deg", to_json(r.ate.rot_deg)}};
@@ -250,12 +257,33 @@ nlohmann::json to_json(const EvalResult& r, const EvalOptions& o, bool with_seri
   return j;
 }
 
+std::string alignment_warning(const EvalResult& r) {
+  // NaN (no such fit) compares false; an infinite spread (no motion at all) true.
+  const bool rotation = r.alignment_rotation_std_deg > kMaxAlignmentRotationStdDeg;
+  const bool scale = r.sim3_scale_std > kMaxAlignmentScaleStd;
+  if (!rotation && !scale) return {};
+  std::string what;
+  if (rotation) what = fmt::format("its rotation is uncertain by {:.2g} deg", r.alignment_rotation_std_deg);
+  if (scale) {
+    what += fmt::format("{}the Sim(3) scale {}by {:.2g} %", rotation ? " and " : "", rotation ? "" : "is uncertain ",
+                        100.0 * r.sim3_scale_std);
+  }
+  return fmt::format("warning: the alignment rests on little motion ({:.3f} m of ground-truth path, ATE {:.4f} m): {} "
+                     "(first order), so {} say{} little about the run{}",
+                     r.path_length_m, r.ate.trans_m.rmse, what,
+                     rotation && scale ? "the ATE rotation and the scale error"
+                     : rotation        ? "the ATE rotation"
+                                       : "the scale error",
+                     rotation && scale ? "" : "s", rotation ? "; --align origin compares from the first pose" : "");
+}
+
 std::string format_table(const EvalResult& r, const EvalOptions& o) {
   std::string out;
   out += fmt::format("poses: {} estimated, {} ground truth, {} matched; {:.2f} s, {:.2f} m of ground truth\n",
                      r.n_est, r.n_gt, r.n_matched, r.duration_s, r.path_length_m);
   out += fmt::format("alignment: {} (scale {:.6f}); Sim(3) scale estimate {:.6f}\n", to_string(r.align),
                      r.alignment.s, r.sim3_scale);
+  if (const std::string w = alignment_warning(r); !w.empty()) out += w + "\n";
   out += fmt::format("{:<22} {:>6} {:>11} {:>11} {:>11} {:>11} {:>11} {:>11}\n", "metric", "n", "rmse", "mean",
                      "median", "std", "min", "max");
   auto row = [&out](const std::string& name, const ErrorStats& s) {

@@ -8,6 +8,7 @@
 //      meters  — path length accumulated from pose 0; an id each time it reaches δ (then restarts from 0);
 //      seconds — rtslam's extension (evo has none): ids 0, then each first pose at least δ s after the last id.
 //  - statistics: rmse, mean, median (mean of the two middle values), std (population), min, max, sse.
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -79,6 +80,10 @@ struct EvalResult {
   Alignment align = Alignment::Se3;
   Sim3 alignment;             // est' = alignment ∘ est
   double sim3_scale = 1.0;    // the Sim(3) Umeyama scale, reported whatever the alignment (monocular scale drift)
+  // How well the positions determine the fits (align.hpp, alignment_spread; NaN where there is no such fit): the
+  // chosen SE3 / Sim3 alignment's rotation (deg, worst axis) and the Sim(3) scale (relative).
+  double alignment_rotation_std_deg = std::numeric_limits<double>::quiet_NaN();
+  double sim3_scale_std = std::numeric_limits<double>::quiet_NaN();
   double duration_s = 0.0;    // time span of the associated poses
   double path_length_m = 0.0; // path length of the associated ground truth
   AteResult ate;
@@ -92,7 +97,11 @@ EvalResult evaluate(const Trajectory& est, const Trajectory& gt, const EvalOptio
 nlohmann::json to_json(const ErrorStats& s);
 /// JSON of the result; with `with_series` the per-pose error arrays are included.
 nlohmann::json to_json(const EvalResult& r, const EvalOptions& options, bool with_series = false);
-/// A human-readable table for the terminal.
+/// When the alignment says more about the residual than about the run (its rotation or the Sim(3) scale uncertain
+/// beyond kMaxAlignmentRotationStdDeg / kMaxAlignmentScaleStd, e.g. over a standstill): one line saying so and what
+/// to use instead; else empty.
+std::string alignment_warning(const EvalResult& r);
+/// A human-readable table for the terminal (with alignment_warning's line when there is one).
 std::string format_table(const EvalResult& r, const EvalOptions& options);
 
 }  // namespace rtslam::eval

@@ -210,6 +210,7 @@ RunAccuracy evaluate_accuracy(const Trajectory& est, const Trajectory& gt, bool 
     r.line = fmt::format("  ATE (Sim(3) aligned): RMSE {:.4f} m = {:.3f} % of the {:.2f} m path; scale {:.4f}",
                          r.ate.ate.trans_m.rmse, pct, path, r.ate.sim3_scale);
   }
+  if (const std::string w = alignment_warning(r.ate); !w.empty()) r.line += "\n  " + w;
   if (r.nees) {
     r.line += fmt::format("\n  pose NEES: mean {:.2f}, {:.1f} % inside the 99 % band [{:.2f}, {:.2f}]", r.nees->mean,
                           100.0 * r.nees->fraction_in_band, r.nees->band_lo, r.nees->band_hi);

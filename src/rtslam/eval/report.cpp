@@ -288,6 +288,7 @@ std::string write_run_report(const std::string& run_dir, const ReportOptions& op
                      "{:.2f} m.",
                      to_string(r.metrics.align), r.metrics.alignment.s, r.metrics.sim3_scale, r.metrics.n_matched,
                      r.metrics.duration_s, r.metrics.path_length_m));
+  if (const std::string w = alignment_warning(r.metrics); !w.empty()) page.p(w, "note");
   if (r.nees_summary)
     page.p(fmt::format("NEES (first-pose aligned): mean {:.3f} (expected 6), {:.1f} % of poses inside the {:g} % band "
                        "[{:.3f}, {:.2f}].",

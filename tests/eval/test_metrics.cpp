@@ -9,6 +9,7 @@
 #include "eval/eval_test_utils.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/eval/metrics.hpp"
+#include "rtslam/eval/run_eval.hpp"
 
 using namespace rtslam;
 using namespace rtslam::eval;
@@ -340,15 +341,21 @@ TEST(AlignmentWarning, AStandstillIsFlaggedAndAFlightIsNot) {
   o.with_rpe = false;
   const EvalResult still = evaluate(est, gt, o);
   EXPECT_GT(still.alignment_rotation_std_deg, kMaxAlignmentRotationStdDeg);
-  EXPECT_GT(still.sim3_scale_std, kMaxAlignmentScaleStd);
+  EXPECT_GT(still.sim3_scale_rel_std, kMaxAlignmentScaleStd);
   std::string w = alignment_warning(still);
   EXPECT_NE(w.find("its rotation is uncertain by"), std::string::npos) << w;
-  EXPECT_NE(w.find("--align origin"), std::string::npos) << w;
+  EXPECT_NE(w.find("rtslam eval --align origin"), std::string::npos) << w;
   EXPECT_NE(format_table(still, o).find(w), std::string::npos);
+  EXPECT_NE(evaluate_accuracy(est, gt, true).line.find(w), std::string::npos);  // rtslam run's accuracy lines
+  const nlohmann::json j = to_json(still, o);
+  EXPECT_DOUBLE_EQ(j["alignment"]["rotation_std_deg"].get<double>(), still.alignment_rotation_std_deg);
+  EXPECT_DOUBLE_EQ(j["sim3_scale_rel_std"].get<double>(), still.sim3_scale_rel_std);
   o.align = Alignment::Origin;  // no rotation fitted: only the Sim(3) scale is flagged
-  w = alignment_warning(evaluate(est, gt, o));
+  const EvalResult origin = evaluate(est, gt, o);
+  w = alignment_warning(origin);
   EXPECT_NE(w.find("the Sim(3) scale is uncertain by"), std::string::npos) << w;
   EXPECT_EQ(w.find("--align origin"), std::string::npos) << w;
+  EXPECT_TRUE(to_json(origin, o)["alignment"]["rotation_std_deg"].is_null());
 
   const Trajectory flight = test::wavy_trajectory(400);
   Trajectory noisy = flight;
@@ -356,6 +363,6 @@ TEST(AlignmentWarning, AStandstillIsFlaggedAndAFlightIsNot) {
   o.align = Alignment::Se3;
   const EvalResult moving = evaluate(noisy, flight, o);
   EXPECT_LT(moving.alignment_rotation_std_deg, 0.1);
-  EXPECT_LT(moving.sim3_scale_std, 0.001);
+  EXPECT_LT(moving.sim3_scale_rel_std, 0.001);
   EXPECT_TRUE(alignment_warning(moving).empty());
 }

@@ -11,8 +11,8 @@
 #include "rtslam/slam/map.hpp"
 #include "rtslam/slam/observation.hpp"
 #include "rtslam/slam/sensor.hpp"
-#include "support/test_camera.hpp"
 #include "support/jacobian_check.hpp"
+#include "support/test_camera.hpp"
 
 namespace rtslam::slam {
 namespace {

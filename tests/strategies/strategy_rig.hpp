@@ -32,7 +32,8 @@ struct StrategyRig {
   explicit StrategyRig(filter::StateOptions state_options = {}) {
     map = &world.add_map(state_options);
     auto r = std::make_unique<slam::ConstantVelocityRobot>(models::ConstantVelocityParams{});
-    sensor = &r->add_sensor(std::make_unique<slam::PinholeSensor>("cam", support::qvga_camera(), math::Pose::identity()));
+    sensor = &r->add_sensor(
+        std::make_unique<slam::PinholeSensor>("cam", support::qvga_camera(), math::Pose::identity()));
     Eigen::VectorXd x0 = Eigen::VectorXd::Zero(13);
     x0.segment<4>(3) = math::quat_to_wxyz(Eigen::Quaterniond::Identity());
     // Zero covariance: the pose is the gauge, predictions are exact and landmarks uncorrelated with the robot.

@@ -200,7 +200,7 @@ AlignmentSpread alignment_spread(const Trajectory& aligned, const Trajectory& gt
   constexpr double kInf = std::numeric_limits<double>::infinity();
   AlignmentSpread out;
   out.rotation_std_deg = lambda_min > 0.0 ? sigma / std::sqrt(lambda_min) * 180.0 / std::numbers::pi : kInf;
-  out.scale_std = spread > 0.0 ? sigma / std::sqrt(spread) : kInf;
+  out.scale_rel_std = spread > 0.0 ? sigma / std::sqrt(spread) : kInf;
   return out;
 }
 

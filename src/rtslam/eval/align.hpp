@@ -55,7 +55,7 @@ Trajectory apply_alignment(const Sim3& S, const Trajectory& est);
 /// error. `aligned`: the estimate after the alignment, associated with `gt`.
 struct AlignmentSpread {
   double rotation_std_deg = 0.0;
-  double scale_std = 0.0;  // relative: std(s) / s
+  double scale_rel_std = 0.0;  // std(s) / s
 };
 AlignmentSpread alignment_spread(const Trajectory& aligned, const Trajectory& gt, Alignment method);
 

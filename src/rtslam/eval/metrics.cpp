@@ -182,7 +182,7 @@ EvalResult evaluate(const Trajectory& est, const Trajectory& gt, const EvalOptio
     try {
       const Sim3 S = compute_alignment(est_sync, gt_sync, Alignment::Sim3);
       r.sim3_scale = S.s;
-      r.sim3_scale_std = alignment_spread(apply_alignment(S, est_sync), gt_sync, Alignment::Sim3).scale_std;
+      r.sim3_scale_rel_std = alignment_spread(apply_alignment(S, est_sync), gt_sync, Alignment::Sim3).scale_rel_std;
     } catch (const DataError&) {
       r.sim3_scale = std::nan("");
     }
@@ -228,7 +228,7 @@ nlohmann::json to_json(const EvalResult& r, const EvalOptions& o, bool with_seri
                                   r.alignment.R(2, 0), r.alignment.R(2, 1), r.alignment.R(2, 2)}},
                     {"translation", {r.alignment.t.x(), r.alignment.t.y(), r.alignment.t.z()}}};
   j["sim3_scale"] = number_or_null(r.sim3_scale);
-  j["sim3_scale_std"] = number_or_null(r.sim3_scale_std);
+  j["sim3_scale_rel_std"] = number_or_null(r.sim3_scale_rel_std);
   j["alignment"]["rotation_std_deg"] = number_or_null(r.alignment_rotation_std_deg);
   j["duration_s"] = r.duration_s;
   j["path_length_m"] = r.path_length_m;
@@ -260,21 +260,22 @@ nlohmann::json to_json(const EvalResult& r, const EvalOptions& o, bool with_seri
 std::string alignment_warning(const EvalResult& r) {
   // NaN (no such fit) compares false; an infinite spread (no motion at all) true.
   const bool rotation = r.alignment_rotation_std_deg > kMaxAlignmentRotationStdDeg;
-  const bool scale = r.sim3_scale_std > kMaxAlignmentScaleStd;
+  const bool scale = r.sim3_scale_rel_std > kMaxAlignmentScaleStd;
   if (!rotation && !scale) return {};
   std::string what;
-  if (rotation) what = fmt::format("its rotation is uncertain by {:.2g} deg", r.alignment_rotation_std_deg);
+  if (rotation) what = fmt::format("its rotation is uncertain by {:.3g} deg", r.alignment_rotation_std_deg);
   if (scale) {
-    what += fmt::format("{}the Sim(3) scale {}by {:.2g} %", rotation ? " and " : "", rotation ? "" : "is uncertain ",
-                        100.0 * r.sim3_scale_std);
+    what += fmt::format("{}the Sim(3) scale {}by {:.3g} %", rotation ? " and " : "", rotation ? "" : "is uncertain ",
+                        100.0 * r.sim3_scale_rel_std);
   }
   return fmt::format("warning: the alignment rests on little motion ({:.3f} m of ground-truth path, ATE {:.4f} m): {} "
                      "(first order), so {} say{} little about the run{}",
                      r.path_length_m, r.ate.trans_m.rmse, what,
-                     rotation && scale ? "the ATE rotation and the scale error"
+                     rotation && scale ? "the ATE rotation and the scale"
                      : rotation        ? "the ATE rotation"
-                                       : "the scale error",
-                     rotation && scale ? "" : "s", rotation ? "; --align origin compares from the first pose" : "");
+                                       : "the scale",
+                     rotation && scale ? "" : "s",
+                     rotation ? "; `rtslam eval --align origin` compares from the first pose" : "");
 }
 
 std::string format_table(const EvalResult& r, const EvalOptions& o) {

@@ -83,7 +83,7 @@ struct EvalResult {
   // How well the positions determine the fits (align.hpp, alignment_spread; NaN where there is no such fit): the
   // chosen SE3 / Sim3 alignment's rotation (deg, worst axis) and the Sim(3) scale (relative).
   double alignment_rotation_std_deg = std::numeric_limits<double>::quiet_NaN();
-  double sim3_scale_std = std::numeric_limits<double>::quiet_NaN();
+  double sim3_scale_rel_std = std::numeric_limits<double>::quiet_NaN();
   double duration_s = 0.0;    // time span of the associated poses
   double path_length_m = 0.0; // path length of the associated ground truth
   AteResult ate;

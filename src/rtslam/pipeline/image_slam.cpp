@@ -459,16 +459,16 @@ struct ImageSlam::Impl final : slam::Observer {
                                  : nullptr;
     if (cam == nullptr) return true;
     if (frame->image.type() != CV_8UC1) throw DataError(fmt::format("{}: image is not 8-bit grey", frame->path));
-    if (cam == camera) {
-      if (consumed++ == 0) first_image_t = frame->t;
-      last_image_t = frame->t;
-    }
     auto d = system.spare<MatImage>();
     const std::optional<TimeNs> t_imu = add_checked(frame->t, t_d);
     if (!t_imu) {
       throw DataError(fmt::format("{}: its time {} s plus the camera-IMU time offset t_d {} s lies beyond the int64 "
                                   "nanosecond range (check t_d / t_d_ns / imu/time_offset)", frame->path,
                                   to_seconds(frame->t), to_seconds(t_d)));
+    }
+    if (cam == camera) {
+      if (consumed++ == 0) first_image_t = *t_imu;
+      last_image_t = *t_imu;
     }
     d->set(*t_imu, cam->sensor->id(), std::move(frame->image));
     if (built.cameras.size() == 1) {
@@ -491,22 +491,36 @@ struct ImageSlam::Impl final : slam::Observer {
     const slam::Robot& robot = *built.robot;
     const slam::System::RobotCounts& counts = system.counts(0);
     if (!counts.started) {
-      if (inertial && system.pending() > 0 && !stopped) {
-        throw DataError(fmt::format("dataset '{}': the IMU stream ends before the images (last IMU sample at {:.3f} s, "
-                                    "{} image(s) from {:.3f} s never covered): the filter could not start",
-                                    name, last_imu_t ? to_seconds(*last_imu_t) : 0.0, system.pending(),
-                                    to_seconds(system.first_pending().value_or(0))));
+      const std::string& cam_name = camera->sensor->name();
+      if (system.pending() > 0) {  // images waiting for the robot's inputs (IMU or odometry) to cover them
+        if (stopped) {
+          throw DataError(fmt::format("dataset '{}': the run was stopped before the robot started ({} image(s) from "
+                                      "{:.3f} s still waiting for its {} data)",
+                                      name, system.pending(), to_seconds(system.first_pending().value_or(0)),
+                                      inertial ? "IMU" : "odometry"));
+        }
+        if (inertial) {
+          throw DataError(fmt::format("dataset '{}': the IMU stream ends before the images (last IMU sample at {:.3f} "
+                                      "s, {} image(s) from {:.3f} s never covered): the filter could not start",
+                                      name, last_imu_t ? to_seconds(*last_imu_t) : 0.0, system.pending(),
+                                      to_seconds(system.first_pending().value_or(0))));
+        }
+        throw DataError(fmt::format("dataset '{}': the robot's odometry ends before the images ({} image(s) from "
+                                    "{:.3f} s never covered): the filter could not start",
+                                    name, system.pending(), to_seconds(system.first_pending().value_or(0))));
       }
       if (consumed == 0) {
         throw DataError(fmt::format("dataset '{}' has no image of camera {} (in the part of it read: see --start-at, "
                                     "--stop-after)",
-                                    name, camera->rig_index));
+                                    name, cam_name));
       }
       const std::string waiting = built.starter->waiting_for();
       throw DataError(fmt::format("dataset '{}': the robot did not start over its {} image(s) of camera {} ({:.3f} to "
-                                  "{:.3f} s){}",
-                                  name, consumed, camera->rig_index, to_seconds(first_image_t),
-                                  to_seconds(last_image_t), waiting.empty() ? "" : ": it still needed " + waiting));
+                                  "{:.3f} s{}){}{}",
+                                  name, consumed, cam_name, to_seconds(first_image_t), to_seconds(last_image_t),
+                                  inertial ? ", the IMU's clock" : "",
+                                  stopped ? " before the run was stopped" : "",
+                                  waiting.empty() ? "" : ": it still needed " + waiting));
     }
     result.images_not_covered = stopped ? 0 : static_cast<int>(system.pending());
     if (result.images_not_covered > 0) {
@@ -595,7 +609,7 @@ struct ImageSlam::Impl final : slam::Observer {
   std::function<void(const ImageSlamFrame&)> observer;
   std::function<void(int, int)> progress;
   int n_total = 0, consumed = 0;
-  TimeNs first_image_t = 0, last_image_t = 0;  // of the images of `camera` read (the stream's clock)
+  TimeNs first_image_t = 0, last_image_t = 0;  // of the images of `camera` read (the IMU's clock: + t_d)
   bool ended = false, stopped = false;
 };
 

@@ -62,6 +62,30 @@ InertialStarter::InertialStarter(const InertialOptions& options, const slam::Sen
 void InertialStarter::restart() {
   first_image_t_ = -1;
   window_.clear();
+  wait_ = Wait::Nothing;
+}
+
+std::string InertialStarter::waiting_for() const {
+  const strategies::ViInitOptions& v = o_.vi_init;
+  switch (wait_) {
+    case Wait::Nothing: return {};
+    case Wait::ImuWindow:
+      return fmt::format("{:.2f} s of IMU data before an image (imu/init_window; {})", o_.init_window_s,
+                         wait_imu_first_ < 0 ? std::string("no IMU sample yet")
+                                             : fmt::format("the IMU starts at {:.3f} s", to_seconds(wait_imu_first_)));
+    case Wait::ViWindow:
+      return fmt::format("{:.2f} s of images for the visual-inertial start (imu/vi_init/window; {} image(s) over "
+                         "{:.2f} s)",
+                         v.window_s, window_.size(),
+                         window_.empty() ? 0.0 : to_seconds(window_.back().t - window_.front().t));
+    case Wait::ViAccepted:
+      return fmt::format("a window the visual-inertial start accepts (the last one: {}), or images past {:.3f} s, "
+                         "where the IMU-only start takes over (imu/vi_init/max_window + max_wait after the first "
+                         "image at {:.3f} s)",
+                         wait_reason_, to_seconds(first_image_t_ + from_seconds(v.max_window_s + v.max_wait_s)),
+                         to_seconds(first_image_t_));
+  }
+  return {};
 }
 
 void InertialStarter::started(slam::Map&, slam::Robot&, bool) {
@@ -69,14 +93,14 @@ void InertialStarter::started(slam::Map&, slam::Robot&, bool) {
   depth_hint_.reset();
   window_.clear();
   window_.shrink_to_fit();
+  wait_ = Wait::Nothing;
 }
 
 std::optional<slam::RobotStart> InertialStarter::imu_only(TimeNs t, const RingBuffer<slam::ImuData>& inputs,
                                                           std::string prefix) {
   if (inputs.empty() || inputs.front().t > t - from_seconds(o_.init_window_s)) {
-    waiting_for_ = fmt::format("{:.2f} s of IMU data before an image (imu/init_window; {})", o_.init_window_s,
-                               inputs.empty() ? std::string("no IMU sample yet")
-                                              : fmt::format("the IMU starts at {:.3f} s", to_seconds(inputs.front().t)));
+    wait_ = Wait::ImuWindow;
+    wait_imu_first_ = inputs.empty() ? -1 : inputs.front().t;
     return std::nullopt;
   }
   const InertialStart s0 = initialize_inertial(imu_window(inputs), t, o_);
@@ -119,9 +143,7 @@ std::optional<slam::RobotStart> InertialStarter::try_visual_inertial(const RingB
   const strategies::ViInitOptions& v = o_.vi_init;
   if (first_image_t_ < 0) first_image_t_ = window_.front().t;
   if (window_.back().t - window_.front().t < from_seconds(v.window_s)) {
-    waiting_for_ = fmt::format("{:.2f} s of images for the visual-inertial start (imu/vi_init/window; {} image(s) over "
-                               "{:.2f} s)",
-                               v.window_s, window_.size(), to_seconds(window_.back().t - window_.front().t));
+    wait_ = Wait::ViWindow;
     return std::nullopt;
   }
   const std::vector<strategies::ImuWindowSample> imu = imu_window(inputs);
@@ -148,9 +170,8 @@ std::optional<slam::RobotStart> InertialStarter::try_visual_inertial(const RingB
     return s;
   }
   logger("slam")->debug("visual-inertial start at t = {:.3f} s: {}", to_seconds(window_.front().t), r.reason);
-  waiting_for_ = fmt::format("a window the visual-inertial start accepts (the last one: {}), or {:.1f} s of failed "
-                             "windows before the IMU-only start (imu/vi_init/max_wait)",
-                             r.reason, v.max_wait_s);
+  wait_ = Wait::ViAccepted;
+  wait_reason_ = r.reason;
   if (window_.back().t - first_image_t_ > from_seconds(v.max_window_s + v.max_wait_s)) {
     std::optional<slam::RobotStart> s =
         imu_only(window_.back().t, inputs, fmt::format("visual-inertial start failed for {:.1f} s ({}): IMU-only start; ",

@@ -70,7 +70,7 @@ class InertialStarter final : public slam::RobotStarter {
   void started(slam::Map& map, slam::Robot& robot, bool first) override;
   void restart() override;
   int skipped() const override { return skipped_; }
-  std::string waiting_for() const override { return waiting_for_; }
+  std::string waiting_for() const override;
 
  private:
   std::optional<slam::RobotStart> imu_only(TimeNs t, const RingBuffer<slam::ImuData>& inputs, std::string prefix);
@@ -93,7 +93,11 @@ class InertialStarter final : public slam::RobotStarter {
   std::vector<std::unique_ptr<MatImage>> replay_;  // the window's images, as data to process after a start
   const slam::RawData* offered_ = nullptr;
   int skipped_ = 0;
-  std::string waiting_for_;  // why the last offer did not start the robot
+  // Why the last offer did not start the robot, formatted by waiting_for() only (nothing is formatted per frame).
+  enum class Wait { Nothing, ImuWindow, ViWindow, ViAccepted };
+  Wait wait_ = Wait::Nothing;
+  TimeNs wait_imu_first_ = -1;  // ImuWindow: the oldest IMU sample held (-1: none)
+  std::string wait_reason_;     // ViAccepted: why the last window failed
 };
 
 /// The recent IMU samples as the start functions take them.

@@ -462,10 +462,11 @@ void run_dataset(const RunOptions& ro) {
   // at the filter's first request, so the set-up below drops nothing.
   const bool live = ds.kind == "camera";
   const std::optional<double> realtime_speed = live ? std::optional<double>(1.0) : ro.realtime;
-  const io::RealtimeSource* realtime = nullptr;
+  io::RealtimeSource* realtime = nullptr;
   if (realtime_speed) {
     auto rt = std::make_unique<io::RealtimeSource>(std::move(ds.source), *realtime_speed,
                                                    io::RealtimeSource::kDefaultMaxQueue, live);
+    rt->set_interrupt(&g_run_stop);  // Ctrl-C while the filter waits for a late (or never coming) measurement
     realtime = rt.get();
     ds.source = std::move(rt);
   }
@@ -503,6 +504,9 @@ void run_dataset(const RunOptions& ro) {
     result = pipeline::run_image_slam(
         ds, run_o, [&](int done, int) { progress.update(static_cast<size_t>(done)); }, observer, &g_run_stop);
     interrupted = g_run_stop.load();
+    // The acquisition ends here (a run stopped early leaves it reading): the input's counts and the images left
+    // untaken are final before they are reported, and a live camera is released during a --view hold.
+    if (realtime != nullptr) realtime->stop();
     progress.finish();
     displays.finish_run();
     trajectory_csv.close();
@@ -630,14 +634,16 @@ void run_dataset(const RunOptions& ro) {
                              {"images_released", rs.images_released},
                              {"images_processed", rs.images_taken},
                              {"images_dropped", rs.images_dropped},
+                             {"images_left", rs.images_left},
                              {"max_lag_s", rs.max_lag_s},
                              {"mean_lag_s", rs.mean_lag_s},
                              {"reader_late_s", rs.reader_late_s}};
       realtime_line = fmt::format(
-          "  real time ({}x the sensor clock): {} of {} images processed, {} dropped (late); filter lag mean "
+          "  real time ({}x the sensor clock): {} of {} images processed, {} dropped (late){}; filter lag mean "
           "{:.1f} ms, max {:.1f} ms; acquisition late by up to {:.1f} ms\n",
-          *realtime_speed, rs.images_taken, rs.images_released, rs.images_dropped, 1e3 * rs.mean_lag_s,
-          1e3 * rs.max_lag_s, 1e3 * rs.reader_late_s);
+          *realtime_speed, rs.images_taken, rs.images_released, rs.images_dropped,
+          rs.images_left > 0 ? fmt::format(", {} left when the run stopped", rs.images_left) : std::string(),
+          1e3 * rs.mean_lag_s, 1e3 * rs.max_lag_s, 1e3 * rs.reader_late_s);
       if (rs.images_dropped > 0) {
         logger("run")->warn("real time: {} image(s) dropped because the filter was busy (speed {}x)", rs.images_dropped,
                             *realtime_speed);
@@ -874,8 +880,10 @@ void register_run(CLI::App& app) {
              } catch (const std::exception&) {
                used = 0;
              }
-             if (used != v.size() || !(speed > 0.0 && speed <= 1000.0)) {
-               throw ConfigError(fmt::format("--realtime = '{}' must be a speed in (0, 1000]", v));
+             if (used != v.size() ||
+                 !(speed >= io::RealtimeSource::kMinSpeed && speed <= io::RealtimeSource::kMaxSpeed)) {
+               throw ConfigError(fmt::format("--realtime = '{}' must be a speed in [{}, {}]", v,
+                                             io::RealtimeSource::kMinSpeed, io::RealtimeSource::kMaxSpeed));
              }
            }
            opts->realtime = speed;

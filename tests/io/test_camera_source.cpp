@@ -7,6 +7,7 @@
 #include <chrono>
 #include <variant>
 
+#include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -112,6 +113,26 @@ TEST(CameraSource, AFrameOfAnotherSizeThanTheCalibrationIsAnError) {
     EXPECT_NE(std::string(e.what()).find("frame is 64x48, the calibration says 752x480"), std::string::npos)
         << e.what();
   }
+}
+
+TEST(CameraSource, SkippingEveryFrameEndsInAnErrorNotAnEndlessWait) {
+  // --bad-input skip and a device that ignores the calibration's size: every frame is skipped. The stream would
+  // never yield (and a run could not be interrupted while it waited): after kMaxSkippedInARow frames it fails.
+  test::TempDir dir;
+  write_video(dir / "cam.avi", 3, 50.0);
+  CameraSource src(CameraSpec::parse(dir / "cam.avi"), cv::Size(752, 480), 1000.0, BadInputPolicy::Skip);
+  try {
+    src.next();
+    FAIL() << "no error";
+  } catch (const IoError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(fmt::format("{} frames in a row could not be used", CameraSource::kMaxSkippedInARow)),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("the calibration says 752x480"), std::string::npos) << what;
+  }
+  EXPECT_EQ(src.stats().wrong_size_images, static_cast<std::size_t>(CameraSource::kMaxSkippedInARow));
+  EXPECT_EQ(src.stats().images, 0u);
 }
 
 TEST(CameraDataset, NeedsACalibrationAndNamesAMissingDevice) {

@@ -3,6 +3,7 @@
 // loose (shared CI machines): they tell "paced by the clock" from "not paced" and "keeps up" from "falls behind".
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <thread>
 #include <variant>
@@ -194,8 +195,71 @@ TEST(Realtime, AConsumerThatStopsEarlyDoesNotHang) {
   EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 2.0);
 }
 
+TEST(Realtime, StopBringsTheInputCountsUpToDateAndCountsTheImagesLeft) {
+  // An interrupted run reports the input and the real-time counts: before stop(), the inner source's statistics
+  // were those of the stream's start (0 images) until the acquisition reached the end of a 60 s stream.
+  RealtimeSource src(std::make_unique<SyntheticStream>(60.0), 1.0);
+  std::size_t taken = 0;
+  while (taken < 3) {
+    auto m = src.next();
+    ASSERT_TRUE(m.has_value());
+    taken += std::holds_alternative<ImageFrame>(*m) ? 1 : 0;
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(120));  // two more images released, not taken
+  src.stop();
+  const RealtimeStats s = src.realtime();
+  EXPECT_EQ(s.images_taken, 3u);
+  EXPECT_GE(s.images_left, 1u);
+  EXPECT_EQ(s.images_taken + s.images_dropped + s.images_left, s.images_released);
+  // What the inner source read: every image released, and at most the one read ahead and waiting for its time.
+  EXPECT_GE(src.stats().images, s.images_released);
+  EXPECT_LE(src.stats().images, s.images_released + 1);
+  EXPECT_FALSE(src.next().has_value());  // stopped: the end
+  src.stop();                            // idempotent
+  EXPECT_EQ(src.realtime().images_left, s.images_left);
+}
+
+// An IMU sample at 0 and the next `gap_s` later: a replay waits that long for the second.
+class GapStream final : public Source {
+ public:
+  explicit GapStream(double gap_s) : gap_(static_cast<TimeNs>(gap_s * 1e9)) {}
+  std::optional<Measurement> next() override {
+    if (n_ == 2) return std::nullopt;
+    ImuSample s;
+    s.t = n_++ == 0 ? 0 : gap_;
+    ++stats_.imu_samples;
+    return s;
+  }
+  const SourceStats& stats() const override { return stats_; }
+
+ private:
+  TimeNs gap_;
+  int n_ = 0;
+  SourceStats stats_;
+};
+
+TEST(Realtime, AnInterruptEndsTheWaitForAMeasurementLongInComing) {
+  // Ctrl-C during a replay's timestamp gap (or while a live camera delivers nothing usable): the consumer returns the
+  // end of the stream instead of waiting out the gap; without the flag it would wait an hour.
+  std::atomic<bool> stop{false};
+  RealtimeSource src(std::make_unique<GapStream>(3600.0), 1.0);
+  src.set_interrupt(&stop);
+  ASSERT_TRUE(src.next().has_value());
+  std::thread raise([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stop = true;
+  });
+  const auto t0 = Clock::now();
+  EXPECT_FALSE(src.next().has_value());
+  raise.join();
+  src.stop();
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 2.0);
+  EXPECT_EQ(src.stats().imu_samples, 2u);  // the second was read, waiting for its release time
+}
+
 TEST(Realtime, SpeedOutOfRangeIsAConfigError) {
   EXPECT_THROW(RealtimeSource(std::make_unique<SyntheticStream>(1.0), 0.0), ConfigError);
+  EXPECT_THROW(RealtimeSource(std::make_unique<SyntheticStream>(1.0), 1e-9), ConfigError);  // would never release
   EXPECT_THROW(RealtimeSource(std::make_unique<SyntheticStream>(1.0), 1e9), ConfigError);
 }
 

@@ -109,6 +109,16 @@ bool CameraSource::grab_file(cv::Mat& raw) {
 }
 
 std::optional<Measurement> CameraSource::next() {
+  int skipped = 0;
+  // A frame skipped (reported as bad input first: under the error policy that throws).
+  const auto skip = [&](std::size_t SourceStats::*counter, const std::string& message, bool file_problem) {
+    reporter_.report(counter, message, file_problem);
+    if (++skipped >= kMaxSkippedInARow) {
+      throw IoError(fmt::format("{}: {} frames in a row could not be used (the last: {}); check the device's "
+                                "format and the calibration's image size",
+                                spec_.path, skipped, message));
+    }
+  };
   while (true) {
     cv::Mat raw;
     TimeNs grab_ns = 0;
@@ -121,8 +131,8 @@ std::optional<Measurement> CameraSource::next() {
       grab_ns = steady_now_ns();
       driver_ms = capture_->get(cv::CAP_PROP_POS_MSEC);
       if (!capture_->retrieve(raw) || raw.empty()) {
-        reporter_.report(&SourceStats::undecodable_images,
-                         fmt::format("{}#{}: the frame could not be retrieved", spec_.path, index_++), true);
+        skip(&SourceStats::undecodable_images, fmt::format("{}#{}: the frame could not be retrieved", spec_.path,
+                                                           index_++), true);
         continue;
       }
     } else {
@@ -143,13 +153,14 @@ std::optional<Measurement> CameraSource::next() {
     std::string why;
     frame.image = to_grey8(raw, &why, &image_bits_);
     if (frame.image.empty()) {
-      reporter_.report(&SourceStats::unsupported_images, fmt::format("{}: frame {}", frame.path, why), true);
+      skip(&SourceStats::unsupported_images, fmt::format("{}: frame {}", frame.path, why), true);
       continue;
     }
     if (expected_size_.width > 0 && expected_size_.height > 0 && frame.image.size() != expected_size_) {
-      reporter_.report(&SourceStats::wrong_size_images,
-                       fmt::format("{}: frame is {}x{}, the calibration says {}x{}", frame.path, frame.image.cols,
-                                   frame.image.rows, expected_size_.width, expected_size_.height));
+      skip(&SourceStats::wrong_size_images,
+           fmt::format("{}: frame is {}x{}, the calibration says {}x{}", frame.path, frame.image.cols,
+                       frame.image.rows, expected_size_.width, expected_size_.height),
+           false);
       continue;
     }
     ++stats_.images;

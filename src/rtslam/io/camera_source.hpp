@@ -40,6 +40,11 @@ TimeNs camera_frame_time(double driver_ms, TimeNs grab_ns, TimeNs previous_ns);
 
 class CameraSource final : public Source {
  public:
+  /// Frames skipped in a row (--bad-input skip: unretrievable, unconvertible or of the wrong size) after which the
+  /// camera is taken to deliver nothing usable: an IoError naming the last reason, rather than a run that waits
+  /// forever (at 30 Hz, about 3 s).
+  static constexpr int kMaxSkippedInARow = 100;
+
   /// `expected_size`: the calibration's image size (asked of a device; 0x0: unchecked). `rate_hz`: asked of a device,
   /// and the stand-in file's playback rate (0: the device's own / the file's container rate).
   CameraSource(const CameraSpec& spec, cv::Size expected_size, double rate_hz, BadInputPolicy policy);

@@ -101,16 +101,19 @@ PrefetchSource::~PrefetchSource() {
 }
 
 void PrefetchSource::read() {
-  std::shared_ptr<const SourceStats> last = stats_;
   while (true) {
     Entry e;
     try {
       e.m = inner_->next();
-    } catch (...) {
+      // The inner stats change with every measurement (its counts): a copy per read, shared by nobody else.
+      e.stats = std::make_shared<const SourceStats>(inner_->stats());
+    } catch (...) {  // the inner source's error, or no memory for the copy: either ends the stream here
       e.error = std::current_exception();
+      try {
+        e.stats = std::make_shared<const SourceStats>(inner_->stats());  // with the problem that threw
+      } catch (...) {
+      }
     }
-    // The inner stats change with every measurement (its counts): a copy per read, shared by nobody else.
-    e.stats = std::make_shared<const SourceStats>(inner_->stats());
     const bool last_entry = !e.m || e.error;
     std::unique_lock lock(mutex_);
     room_cv_.wait(lock, [this] { return stop_ || queue_.size() < depth_; });
@@ -127,7 +130,7 @@ std::optional<Measurement> PrefetchSource::next() {
   item_cv_.wait(lock, [this] { return !queue_.empty(); });
   Entry e = std::move(queue_.front());
   queue_.pop_front();
-  stats_ = std::move(e.stats);
+  if (e.stats) stats_ = std::move(e.stats);
   lock.unlock();
   room_cv_.notify_one();
   if (e.error) {

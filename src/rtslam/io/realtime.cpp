@@ -11,12 +11,14 @@
 namespace rtslam::io {
 
 using Clock = std::chrono::steady_clock;
+constexpr double kMaxWaitS = 365.0 * 86400.0;
 
 RealtimeSource::RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue, bool live)
     : inner_(std::move(inner)), speed_(speed), max_queue_(max_queue), live_(live) {
   RTSLAM_CHECK(inner_ != nullptr, "RealtimeSource: null source");
-  if (!(speed > 0.0 && speed <= 1000.0)) {
-    throw ConfigError(fmt::format("realtime speed = {} must be in (0, 1000] (sensor seconds per wall second)", speed));
+  if (!(speed >= kMinSpeed && speed <= kMaxSpeed)) {
+    throw ConfigError(fmt::format("realtime speed = {} must be in [{}, {}] (sensor seconds per wall second)", speed,
+                                  kMinSpeed, kMaxSpeed));
   }
   if (max_queue_ < 16) throw ConfigError("RealtimeSource: max_queue must be >= 16");
   if (live_ && speed_ != 1.0)
@@ -26,13 +28,26 @@ RealtimeSource::RealtimeSource(std::unique_ptr<Source> inner, double speed, std:
   thread_ = std::thread([this] { acquire(); });
 }
 
-RealtimeSource::~RealtimeSource() {
+RealtimeSource::~RealtimeSource() { stop(); }
+
+void RealtimeSource::stop() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (stopped_) return;
     stop_ = true;
   }
   changed_.notify_all();
   if (thread_.joinable()) thread_.join();
+  std::lock_guard<std::mutex> lock(mutex_);
+  stopped_ = true;
+  ended_ = true;
+  inner_stats_ = inner_->stats();  // the thread is gone: the inner source is ours, its counts final
+  for (const Item& item : queue_) {
+    if (!item.superseded && std::holds_alternative<ImageFrame>(item.m)) ++stats_.images_left;
+  }
+  queue_.clear();
+  newest_image_.clear();
+  error_ = nullptr;  // an error met after the consumer stopped reading belongs to no measurement it took
 }
 
 void RealtimeSource::acquire() {
@@ -50,9 +65,11 @@ void RealtimeSource::acquire() {
         t0 = t;
         wall0 = Clock::now();
       }
+      // The release time; the sensor time since the first measurement clamped so that the cast cannot overflow
+      // (a timestamp far from the first: a year of wall time is as good as never).
       const auto due = live_ ? Clock::now()
-                             : wall0 + std::chrono::duration_cast<Clock::duration>(
-                                           std::chrono::duration<double>(to_seconds(t - *t0) / speed_));
+                             : wall0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
+                                           std::clamp(to_seconds(t - *t0) / speed_, -kMaxWaitS, kMaxWaitS)));
       // Wait for the release time (or a stop); a full queue (the consumer far behind on IMU samples) waits too.
       changed_.wait_until(lock, due, [&] { return stop_; });
       changed_.wait(lock, [&] { return stop_ || queue_.size() < max_queue_; });
@@ -83,10 +100,12 @@ void RealtimeSource::acquire() {
     std::lock_guard<std::mutex> lock(mutex_);
     error_ = std::current_exception();
   }
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ended_ = true;
+  std::lock_guard<std::mutex> lock(mutex_);
+  ended_ = true;
+  try {
     inner_stats_ = inner_->stats();
+  } catch (...) {  // out of memory copying the messages: the counts stay as last copied, the stream still ends
+    if (!error_) error_ = std::current_exception();
   }
   changed_.notify_all();
 }
@@ -98,7 +117,14 @@ std::optional<Measurement> RealtimeSource::next() {
     changed_.notify_all();
   }
   while (true) {
-    changed_.wait(lock, [&] { return !queue_.empty() || ended_; });
+    const auto ready = [&] { return !queue_.empty() || ended_; };
+    if (interrupt_ == nullptr) {
+      changed_.wait(lock, ready);
+    } else {
+      while (!changed_.wait_for(lock, std::chrono::milliseconds(50), ready)) {
+        if (interrupt_->load()) return std::nullopt;
+      }
+    }
     if (queue_.empty()) {
       if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
       return std::nullopt;
@@ -122,7 +148,8 @@ std::optional<Measurement> RealtimeSource::next() {
 
 const SourceStats& RealtimeSource::stats() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return inner_stats_;
+  consumer_stats_ = inner_stats_;  // a copy: the acquisition thread may write inner_stats_ once the lock is released
+  return consumer_stats_;
 }
 
 RealtimeStats RealtimeSource::realtime() const {

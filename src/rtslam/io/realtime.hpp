@@ -12,10 +12,16 @@
 // frames the camera delivers while the filter is still setting up are superseded and counted as dropped, as they
 // would be on a robot.
 //
+// Stopping early (an interrupted run): stop() ends the acquisition thread and brings the statistics up to
+// date: the inner source's as far as it was read, and the images released but never taken (images_left). A consumer
+// waiting in next() for a measurement that may be long in coming (a replay's timestamp gap, a live camera delivering
+// nothing usable) returns the end of the stream as soon as the flag given to set_interrupt() is raised.
+//
 // Lag: when the consumer takes an image, how long after its release time it is (the filter's delay behind the
 // clock); a run that keeps up has a lag of about one frame's processing time, one that falls behind drops images
 // instead of letting the lag grow. Both figures are in RealtimeStats.
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
@@ -35,6 +41,7 @@ struct RealtimeStats {
   std::size_t images_taken = 0;     // by the consumer
   std::size_t images_dropped = 0;   // superseded by a newer image of the same camera before being taken (counted
                                     // when the newer one is released)
+  std::size_t images_left = 0;     // released but neither taken nor dropped when the run stopped (stop())
   std::size_t imu_samples = 0;
   double max_lag_s = 0.0;           // of the images taken (wall time after their release time)
   double mean_lag_s = 0.0;
@@ -44,7 +51,8 @@ struct RealtimeStats {
 class RealtimeSource final : public Source {
  public:
   static constexpr std::size_t kDefaultMaxQueue = 8192;
-  /// speed: sensor seconds per wall second (1: real time); max_queue bounds what waits (IMU samples and images);
+  static constexpr double kMinSpeed = 1e-3, kMaxSpeed = 1000.0;
+  /// speed: sensor seconds per wall second (1: real time), in [kMinSpeed, kMaxSpeed]; max_queue bounds what waits (IMU samples and images);
   /// live: the inner source delivers at its own clock (a camera; speed must be 1), released as it arrives.
   RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue = kDefaultMaxQueue,
                  bool live = false);
@@ -55,10 +63,16 @@ class RealtimeSource final : public Source {
   /// The next measurement in time order, waiting for its release; images superseded while waiting are skipped.
   /// Rethrows, at its place in the stream, an error the inner source threw.
   std::optional<Measurement> next() override;
-  /// The inner source's statistics as of the stream's start, and complete once next() has returned its end.
+  /// The inner source's statistics as of the stream's start, and complete once next() has returned its end or
+  /// stop() has been called. Call from the consumer's thread.
   const SourceStats& stats() const override;
   std::optional<std::size_t> image_count() const override { return count_; }
   RealtimeStats realtime() const;
+  /// Ends the acquisition (joins its thread; idempotent): next() returns the end from now on, stats() is complete
+  /// for what was read and realtime() counts the images left untaken. The destructor stops as well.
+  void stop();
+  /// next() returns the end of the stream while it waits, once *flag is true (checked every 50 ms). Null: never.
+  void set_interrupt(const std::atomic<bool>* flag) { interrupt_ = flag; }
 
  private:
   void acquire();
@@ -80,10 +94,13 @@ class RealtimeSource final : public Source {
   bool consumer_started_ = false;  // next() was called: a replay's clock runs
   bool ended_ = false;
   bool stop_ = false;
+  bool stopped_ = false;  // stop() has joined the thread
+  const std::atomic<bool>* interrupt_ = nullptr;
   std::exception_ptr error_;
   RealtimeStats stats_;
   double lag_sum_s_ = 0.0;
-  mutable SourceStats inner_stats_;
+  SourceStats inner_stats_;              // written by the acquisition thread at its end, and by stop()
+  mutable SourceStats consumer_stats_;   // stats()'s copy of it, made under the lock
   std::thread thread_;
 };
 

@@ -343,7 +343,7 @@ void run_demo(const RunOptions& ro) {
     return;
   }
   prepare_out_dir(ro);
-  io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
+  io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o), "--points-demo");
 
   io::ProgressLine progress(0, nullptr, ro.quiet ? std::optional<bool>(false) : std::nullopt);
   sim::PointScene scene(o.scene());

@@ -145,6 +145,29 @@ TEST(Cli, PointsDemoRunsTheKnownAssociationSkeleton) {
   const Result bad = run("run --points 30 --quiet --out " + a.string());
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("--points-demo"), std::string::npos) << bad.out;
+  // Its config.yaml reruns it bit for bit with the command its first line gives; without --points-demo the error
+  // says so (it said "unknown key 'demo'"), and an image configuration given to the demo says the converse.
+  const std::string config = (a / "config.yaml").string();
+  const std::string text = read_file(a / "config.yaml");
+  EXPECT_EQ(text.substr(0, text.find('\n')),
+            "# rtslam effective configuration: rerun with rtslam run --points-demo --config " + config);
+  const fs::path b = temp_dir("points_again");
+  const Result again = run("run --points-demo --config " + config + " --quiet --out " + b.string());
+  ASSERT_EQ(again.code, 0) << again.out;
+  EXPECT_EQ(read_file(a / "trajectory.txt"), read_file(b / "trajectory.txt"));
+  const Result wrong = run("run --config " + config + " --quiet --out " + (b / "x").string());
+  EXPECT_NE(wrong.code, 0);
+  EXPECT_EQ(count_lines(wrong.out), 1) << wrong.out;
+  EXPECT_NE(wrong.out.find(config + ": a configuration of the points demo (key 'demo'): run it with rtslam run "
+                                    "--points-demo"),
+            std::string::npos)
+      << wrong.out;
+  const Result converse = run("run --points-demo --config " + std::string(RTSLAM_SOURCE_DIR) +
+                              "/config/euroc_mono.yaml --quiet --out " + (b / "y").string());
+  EXPECT_NE(converse.code, 0);
+  EXPECT_NE(converse.out.find("an image-pipeline configuration (key 'slam'): run it without --points-demo"),
+            std::string::npos)
+      << converse.out;
 }
 
 TEST(Cli, MissingConfigIsOneLineErrorNamingTheFile) {

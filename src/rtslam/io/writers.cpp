@@ -225,13 +225,15 @@ std::vector<FrameStats> read_frames_csv(const std::string& path) {
 
 // ---------------------------------------------------------------------------------------------- config / summary
 
-void write_config_yaml(const std::string& path, const YAML::Node& config) {
+void write_config_yaml(const std::string& path, const YAML::Node& config, const std::string& run_flags) {
   YAML::Emitter emitter;
   emitter.SetDoublePrecision(17);
   emitter << config;
   if (!emitter.good()) throw IoError(fmt::format("{}: cannot emit YAML: {}", path, emitter.GetLastError()));
   write_atomically(path, [&](std::ostream& out) {
-    out << "# rtslam effective configuration: rerun with --config " << path << "\n" << emitter.c_str() << '\n';
+    out << "# rtslam effective configuration: rerun with rtslam run " << (run_flags.empty() ? "" : run_flags + " ")
+        << "--config " << path << "\n"
+        << emitter.c_str() << '\n';
   });
 }
 

@@ -127,8 +127,9 @@ class FramesCsvWriter {
 /// Reads frames.csv back (for tests and reports).
 std::vector<FrameStats> read_frames_csv(const std::string& path);
 
-/// config.yaml: the effective configuration, so `--config DIR/config.yaml` reproduces the run.
-void write_config_yaml(const std::string& path, const YAML::Node& config);
+/// config.yaml: the effective configuration, so `rtslam run [run_flags] --config DIR/config.yaml` reproduces the run
+/// (run_flags: what else the command needs, e.g. "--points-demo"; named in the file's first line).
+void write_config_yaml(const std::string& path, const YAML::Node& config, const std::string& run_flags = "");
 
 /// summary.json (pretty-printed, 2-space indent).
 void write_summary_json(const std::string& path, const nlohmann::json& summary);

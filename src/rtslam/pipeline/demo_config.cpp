@@ -11,6 +11,10 @@ namespace rtslam::pipeline {
 
 void apply_demo_config(const YAML::Node& root, const std::string& where, PointDemoOptions& o) {
   YamlMap top(root, where);
+  if (top.has("slam") && !top.has("demo")) {  // an image pipeline's configuration (config/*.yaml, a run's)
+    throw ConfigError(fmt::format("{}: an image-pipeline configuration (key 'slam'): run it without --points-demo",
+                                  where));
+  }
   {
     YamlMap d = top.child("demo");
     d.get("seed", o.seed);

@@ -124,6 +124,11 @@ ImageSlamOptions ImageSlamOptions::on_selected_cameras() const {
 
 void apply_image_slam_config(const YAML::Node& root, const std::string& where, ImageSlamOptions& o) {
   YamlMap top(root, where);
+  if (top.has("demo") && !top.has("slam")) {  // e.g. a points-demo run's config.yaml
+    throw ConfigError(fmt::format("{}: a configuration of the points demo (key 'demo'): run it with rtslam run "
+                                  "--points-demo --config {}",
+                                  where, where));
+  }
   {
     YamlMap s = top.child("slam");
     s.get("seed", o.seed);

@@ -523,6 +523,7 @@ void run_dataset(const RunOptions& ro) {
         mp.id = static_cast<std::uint64_t>(result.landmark_ids[i]);
         mp.p_W = result.landmark_positions[i];
         mp.cov = result.landmark_covariances[i];
+        mp.euclidean = result.landmark_euclidean[i] != 0;
         pts.push_back(mp);
       }
       io::write_map_ply(ro.out + "/map.ply", pts);

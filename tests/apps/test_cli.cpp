@@ -109,6 +109,9 @@ TEST(Cli, DemoRunWritesOutputsAndItsConfigReproducesIt) {
                         "config.yaml", "map.ply"}) {
     EXPECT_TRUE(fs::exists(a / f)) << f;
   }
+  // The map with each landmark's type, for `rtslam view` to colour them.
+  EXPECT_NE(read_file(a / "map.ply").find("property uint id\nproperty uchar euclidean\nend_header"),
+            std::string::npos);
   // TUM text: 8 numbers per line, no header surprises.
   std::istringstream traj(read_file(a / "trajectory.txt"));
   std::string line;

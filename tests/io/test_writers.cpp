@@ -157,6 +157,27 @@ TEST(EurocWriter, WhatItWritesTheReaderReadsBackBitIdentically) {
   }
 }
 
+TEST(MapPly, WritesTheLandmarkTypesWhenEveryOneIsKnown) {
+  TempDir dir;
+  std::vector<MapPoint> pts(2);
+  pts[0].id = 4;
+  pts[0].euclidean = true;
+  pts[1].id = 9;
+  pts[1].euclidean = false;
+  write_map_ply(dir / "typed.ply", pts);
+  const std::string text = test::read_text(dir / "typed.ply");
+  EXPECT_NE(text.find("property uint id\nproperty uchar euclidean\nend_header\n"), std::string::npos) << text;
+  const auto back = read_map_ply(dir / "typed.ply");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0].euclidean, std::optional<bool>(true));
+  EXPECT_EQ(back[1].euclidean, std::optional<bool>(false));
+  // One point of unknown type: no such property (a PLY property is every vertex's), read back as unknown.
+  pts[1].euclidean.reset();
+  write_map_ply(dir / "untyped.ply", pts);
+  EXPECT_EQ(test::read_text(dir / "untyped.ply").find("euclidean"), std::string::npos);
+  EXPECT_FALSE(read_map_ply(dir / "untyped.ply")[0].euclidean.has_value());
+}
+
 TEST(MapPly, WritesAsciiPlyWithSigmasAndIds) {
   TempDir dir;
   std::vector<MapPoint> pts(3);

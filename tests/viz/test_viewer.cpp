@@ -372,6 +372,16 @@ TEST(Replay, ReadsARunFolderWithItsOverlays) {
   ASSERT_EQ(rec.map.size(), 3u);
   EXPECT_NEAR(rec.map[1].cov_W(0, 0), 0.04, 1e-12);
   EXPECT_FALSE(rec.map_types_known);
+  // A map written with its types (as `rtslam run` writes it): the replay colours by type.
+  std::vector<io::MapPoint> typed(2);
+  typed[0].euclidean = false;
+  typed[1].euclidean = true;
+  io::write_map_ply((dir / "map.ply").string(), typed);
+  const RunRecording with_types = load_run(dir.string());
+  EXPECT_TRUE(with_types.map_types_known);
+  ASSERT_EQ(with_types.map.size(), 2u);
+  EXPECT_FALSE(with_types.map[0].euclidean);
+  EXPECT_TRUE(with_types.map[1].euclidean);
   ASSERT_EQ(rec.overlays.size(), 20u);
   EXPECT_EQ(rec.camera.width, 160);
 }

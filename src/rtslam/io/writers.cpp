@@ -72,20 +72,27 @@ void write_atomically(const std::string& path, const std::function<void(std::ost
 // ---------------------------------------------------------------------------------------------- map.ply
 
 void write_map_ply(const std::string& path, const std::vector<MapPoint>& points) {
+  const bool types = !points.empty() && std::all_of(points.begin(), points.end(), [](const MapPoint& p) {
+    return p.euclidean.has_value();
+  });
   AtomicFile file(path);
   std::ostream& out = file.stream();
   out << "ply\nformat ascii 1.0\ncomment rtslam map: landmark positions in W [m], per-axis and largest standard "
-         "deviations [m], landmark id\n"
+         "deviations [m], landmark id"
+      << (types ? ", type (1 Euclidean, 0 anchored homogeneous)" : "") << "\n"
       << "element vertex " << points.size() << "\n"
       << "property double x\nproperty double y\nproperty double z\n"
       << "property double sigma_x\nproperty double sigma_y\nproperty double sigma_z\nproperty double sigma\n"
-      << "property uint id\nend_header\n";
+      << "property uint id\n"
+      << (types ? "property uchar euclidean\n" : "") << "end_header\n";
   for (const auto& p : points) {
     const Eigen::Matrix3d sym = 0.5 * (p.cov + p.cov.transpose());
     const double largest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(sym, Eigen::EigenvaluesOnly).eigenvalues()(2);
     out << format_double(p.p_W.x()) << ' ' << format_double(p.p_W.y()) << ' ' << format_double(p.p_W.z());
     for (int k = 0; k < 3; ++k) out << ' ' << format_double(std::sqrt(std::max(0.0, sym(k, k))));
-    out << ' ' << format_double(std::sqrt(std::max(0.0, largest))) << ' ' << p.id << '\n';
+    out << ' ' << format_double(std::sqrt(std::max(0.0, largest))) << ' ' << p.id;
+    if (types) out << ' ' << (*p.euclidean ? 1 : 0);
+    out << '\n';
   }
   file.commit();
 }
@@ -94,7 +101,7 @@ std::vector<MapPoint> read_map_ply(const std::string& path) {
   LineReader in(path);
   std::string line;
   std::size_t count = 0;
-  bool header_done = false;
+  bool header_done = false, types = false;
   while (!header_done && in.next(line)) {
     const auto f = split(line, ' ');
     if (in.line_number() == 1 && line != "ply") throw IoError(fmt::format("{}:1: not a PLY file", path));
@@ -103,20 +110,26 @@ std::vector<MapPoint> read_map_ply(const std::string& path) {
       if (!parse_int64(f[2], n) || n < 0) throw IoError(fmt::format("{}:{}: bad vertex count", path, in.line_number()));
       count = static_cast<std::size_t>(n);
     }
+    types = types || line == "property uchar euclidean";
     header_done = line == "end_header";
   }
   std::vector<MapPoint> points;
+  const std::size_t fields = types ? 9 : 8;
   while (points.size() < count && in.next(line)) {
     const auto f = split(line, ' ');
     MapPoint p;
     double v[7];
-    std::int64_t id = 0;
-    bool ok = f.size() == 8 && parse_int64(f[7], id);
+    std::int64_t id = 0, euclidean = 0;
+    bool ok = f.size() == fields && parse_int64(f[7], id) && (!types || parse_int64(f[8], euclidean));
     for (int k = 0; ok && k < 7; ++k) ok = parse_double(f[static_cast<size_t>(k)], v[k]);
-    if (!ok) throw IoError(fmt::format("{}:{}: expected 'x y z sigma_x sigma_y sigma_z sigma id'", path, in.line_number()));
+    if (!ok) {
+      throw IoError(fmt::format("{}:{}: expected 'x y z sigma_x sigma_y sigma_z sigma id{}'", path, in.line_number(),
+                                types ? " euclidean" : ""));
+    }
     p.p_W = Eigen::Vector3d(v[0], v[1], v[2]);
     p.cov = Eigen::Vector3d(v[3] * v[3], v[4] * v[4], v[5] * v[5]).asDiagonal();
     p.id = static_cast<std::uint64_t>(id);
+    if (types) p.euclidean = euclidean != 0;
     points.push_back(p);
   }
   if (points.size() != count) {

@@ -64,13 +64,15 @@ struct MapPoint {
   std::uint64_t id = 0;
   Eigen::Vector3d p_W = Eigen::Vector3d::Zero();
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  std::optional<bool> euclidean;  // the landmark's type (true: Euclidean point, false: AHP), when known
 };
 
 /// ASCII PLY: vertex properties `x y z` (m), `sigma_x sigma_y sigma_z` (the 3 standard deviations along W's axes,
-/// sqrt of the covariance diagonal, m), `sigma` (sqrt of the largest covariance eigenvalue, m) and `id`. MeshLab
-/// and CloudCompare read the extra properties as scalar fields.
+/// sqrt of the covariance diagonal, m), `sigma` (sqrt of the largest covariance eigenvalue, m), `id`, and
+/// `euclidean` (uchar, 1 Euclidean, 0 AHP) when every point's type is known. MeshLab and CloudCompare read the extra
+/// properties as scalar fields.
 void write_map_ply(const std::string& path, const std::vector<MapPoint>& points);
-/// Reads what write_map_ply wrote (positions, the three sigmas as a diagonal covariance, ids).
+/// Reads what write_map_ply wrote (positions, the three sigmas as a diagonal covariance, ids, types when written).
 std::vector<MapPoint> read_map_ply(const std::string& path);
 
 /// Per-frame statistics of the SLAM loop (one row of frames.csv).

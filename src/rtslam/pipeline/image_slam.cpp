@@ -575,6 +575,7 @@ struct ImageSlam::Impl final : slam::Observer {
       const Eigen::Vector3d p = l->position(mean);
       result.landmark_ids.push_back(l->id());
       result.landmark_positions.push_back(p);
+      result.landmark_euclidean.push_back(l->type() == slam::LandmarkType::EuclideanPoint ? 1 : 0);
       Eigen::Matrix3d cov;
       const auto P = map.state().cov(l->block());
       if (l->type() == slam::LandmarkType::EuclideanPoint) {

@@ -136,6 +136,7 @@ struct ImageSlamResult {
   std::vector<int> landmark_ids;                // final map
   std::vector<Eigen::Vector3d> landmark_positions;
   std::vector<Eigen::Matrix3d> landmark_covariances;  // of the position (AHP: through J_p_L)
+  std::vector<char> landmark_euclidean;         // 1: a Euclidean point, 0: anchored homogeneous (AHP)
   std::vector<double> landmark_depths;          // distance from the final camera position
   // Health (slam/health.hpp): frames judged lost or diverged, re-initializations, and the verdict of the last frame.
   int frames_lost = 0;

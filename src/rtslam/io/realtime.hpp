@@ -52,8 +52,9 @@ class RealtimeSource final : public Source {
  public:
   static constexpr std::size_t kDefaultMaxQueue = 8192;
   static constexpr double kMinSpeed = 1e-3, kMaxSpeed = 1000.0;
-  /// speed: sensor seconds per wall second (1: real time), in [kMinSpeed, kMaxSpeed]; max_queue bounds what waits (IMU samples and images);
-  /// live: the inner source delivers at its own clock (a camera; speed must be 1), released as it arrives.
+  /// speed: sensor seconds per wall second (1: real time), in [kMinSpeed, kMaxSpeed]; max_queue bounds what waits
+  /// (IMU samples and images); live: the inner source delivers at its own clock (a camera; speed must be 1), released
+  /// as it arrives.
   RealtimeSource(std::unique_ptr<Source> inner, double speed, std::size_t max_queue = kDefaultMaxQueue,
                  bool live = false);
   ~RealtimeSource() override;

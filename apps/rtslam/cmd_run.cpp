@@ -474,6 +474,11 @@ void run_dataset(const RunOptions& ro) {
   const calib::StreamMonitor& run_stream = *stream_monitor;
   ds.source = std::move(stream_monitor);
   const std::string budget_source = run_search_budget(ro, realtime_speed, ds, o);
+  if (!realtime_speed && o.search.time_budget_ms > 0.0) {
+    logger("run")->warn("search budget {:.3g} ms ({}) on a run that is not real time: which landmarks are searched "
+                        "depends on this machine's speed, so the result may differ from run to run",
+                        o.search.time_budget_ms, budget_source);
+  }
   io::write_config_yaml(ro.out + "/config.yaml", pipeline::to_yaml(o));
   displays.attach(ds, o.seed);
 

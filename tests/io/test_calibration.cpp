@@ -279,5 +279,123 @@ TEST(Calibration, EurocDistortionCoefficientsWithoutAModelAreAnError) {
                     "distortion_coefficients without distortion_model");
 }
 
+TEST(Calibration, KalibrCamerasOnlyChainsEachCameraToThePreviousOne) {
+  // kalibr_calibrate_cameras writes no T_cam_imu: cam0 is the reference and T_cn_cnm1 (camera n from camera n-1)
+  // places the others. cam1 used to stay at cam0's pose: a stereo rig with a zero baseline, and no message.
+  TempDir dir;
+  const std::string intrinsics = R"(  camera_model: pinhole
+  distortion_coeffs: [-0.28, 0.07, 0.0002, 0.00002]
+  distortion_model: radtan
+  intrinsics: [458.6, 457.3, 367.2, 248.4]
+  resolution: [752, 480]
+)";
+  const std::string cam1 =
+      "cam1:\n  T_cn_cnm1: [[0.999997, 0.002312, 0.000376, -0.110074],\n"
+      "    [-0.002315, 0.999898, 0.014089, 0.000399],\n"
+      "    [-0.000344, -0.014090, 0.999901, -0.000853], [0, 0, 0, 1]]\n";
+  const std::string cam2 = "cam2:\n  T_cn_cnm1: [[1, 0, 0, -0.05], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]\n";
+  write_text(dir / "camchain.yaml", "cam0:\n" + intrinsics + cam1 + intrinsics + cam2 + intrinsics);
+  const Rig rig = load_kalibr(dir / "camchain.yaml");
+  ASSERT_EQ(rig.cameras.size(), 3u);
+  EXPECT_TRUE(rig.cameras[0].T_RS.matrix().isIdentity(0.0));
+  // cam1 in cam0: the inverse of T_c1_c0, about 11 cm along +x (EuRoC's baseline).
+  const Eigen::Vector3d p1 = rig.cameras[1].T_RS.translation();
+  EXPECT_NEAR(p1.x(), 0.110, 1e-3) << p1.transpose();
+  EXPECT_NEAR(p1.norm(), 0.110, 1e-3);
+  // T_RS(1) maps cam1's points to cam0's, so T_c1_c0 T_RS(1) is the identity.
+  Eigen::Matrix4d T10;
+  T10 << 0.999997, 0.002312, 0.000376, -0.110074, -0.002315, 0.999898, 0.014089, 0.000399, -0.000344, -0.014090,
+      0.999901, -0.000853, 0, 0, 0, 1;
+  EXPECT_LT((T10 * rig.cameras[1].T_RS.matrix() - Eigen::Matrix4d::Identity()).cwiseAbs().maxCoeff(), 1e-5);
+  // cam2 follows cam1: 5 cm further along cam1's x.
+  const Eigen::Vector3d p2 = rig.cameras[2].T_RS.translation();
+  EXPECT_LT((p2 - (rig.cameras[1].T_RS * Eigen::Vector3d(0.05, 0, 0))).norm(), 1e-12);
+  // A camera after cam0 with neither key, or T_cam_imu on some cameras only: errors naming the camera.
+  write_text(dir / "orphan.yaml", "cam0:\n" + intrinsics + "cam1:\n" + intrinsics);
+  EXPECT_THROW_WITH(load_kalibr(dir / "orphan.yaml"), ConfigError,
+                    "cam1: neither 'T_cam_imu' nor 'T_cn_cnm1': its pose relative to cam0 is unknown");
+  write_text(dir / "mixed.yaml", "cam0:\n" + intrinsics +
+                                     "cam1:\n  T_cam_imu: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]\n" +
+                                     intrinsics);
+  EXPECT_THROW_WITH(load_kalibr(dir / "mixed.yaml"), ConfigError, "cam1: 'T_cam_imu' while cam0 has none");
+}
+
+TEST(Calibration, ARigYamlImuOffTheRobotFrameMovesTheFrameOntoIt) {
+  // The inertial robot's frame is its IMU: a rig whose IMU is 10 cm along R's x and turned 90° about z gets its
+  // cameras re-expressed in the IMU's frame (the IMU's extrinsic was read and then ignored).
+  TempDir dir;
+  Rig rig;
+  CameraCalibration cam;
+  cam.name = "cam0";
+  cam.width = 752;
+  cam.height = 480;
+  cam.fx = cam.fy = 458;
+  cam.cx = 367;
+  cam.cy = 248;
+  cam.T_RS = Eigen::Translation3d(0.0, 0.2, 0.0) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX());
+  rig.cameras.push_back(cam);
+  ImuCalibration imu;
+  imu.rate_hz = 200;
+  imu.gyro_noise_density = 1.7e-4;
+  imu.gyro_random_walk = 2e-5;
+  imu.accel_noise_density = 2e-3;
+  imu.accel_random_walk = 3e-3;
+  const Eigen::Isometry3d T_RI(Eigen::Translation3d(0.1, 0.0, 0.0) *
+                               Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  imu.T_RS = T_RI;
+  rig.imu = imu;
+  write_rig_yaml(dir / "rig.yaml", rig);
+  const Rig back = load_calibration(dir / "rig.yaml");
+  ASSERT_TRUE(back.imu.has_value());
+  EXPECT_TRUE(back.imu->T_RS.matrix().isIdentity(0.0));
+  EXPECT_TRUE(back.cameras[0].T_RS.isApprox(T_RI.inverse() * cam.T_RS, 1e-12));
+  // The camera's centre, (0, 0.2, 0) in R, seen from the IMU at (0.1, 0, 0) turned 90°: (0.2, 0.1, 0).
+  EXPECT_TRUE(back.cameras[0].T_RS.translation().isApprox(Eigen::Vector3d(0.2, 0.1, 0.0), 1e-12))
+      << back.cameras[0].T_RS.translation().transpose();
+}
+
+TEST(Calibration, ARotationWrittenWithFiveDecimalsIsMadeOrthonormalWithAWarning) {
+  // EuRoC's cam0 T_BS rounded to 5 decimals: max |RᵀR − I| about 1e-5, refused before (the bound was 1e-6).
+  TempDir dir;
+  write_text(dir / "sensor.yaml", R"(%YAML:1.0
+sensor_type: camera
+T_BS:
+  cols: 4
+  rows: 4
+  data: [0.01487, -0.99988, 0.00414, -0.02164,  0.99956, 0.01497, 0.02572, -0.06468,
+         -0.02577, 0.00376, 0.99966, 0.00981,  0.0, 0.0, 0.0, 1.0]
+rate_hz: 20
+resolution: [752, 480]
+camera_model: pinhole
+intrinsics: [458.654, 457.296, 367.215, 248.375]
+distortion_model: radial-tangential
+distortion_coefficients: [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]
+)");
+  std::vector<std::string> warnings;
+  const CameraCalibration cam = load_euroc_camera(dir / "sensor.yaml", &warnings);
+  const Eigen::Matrix3d R = cam.T_RS.linear();
+  EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_NEAR(R(0, 1), -0.99988, 1e-4);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("'T_BS' rotation is orthonormal only to"), std::string::npos) << warnings[0];
+}
+
+TEST(Calibration, KittiCameraCentreIsMinusKInverseTimesTheLastColumn) {
+  // KITTI odometry 00's P2: P = K [I | t] with t_z = 2.745884e-03, so t_x is (P03 − cx t_z) / fx, not P03 / fx
+  // (about 2.3 mm apart).
+  TempDir dir;
+  write_text(dir / "calib.txt",
+             "P0: 7.188560e+02 0.000000e+00 6.071928e+02 0.000000e+00 0.000000e+00 7.188560e+02 1.852157e+02 "
+             "0.000000e+00 0.000000e+00 0.000000e+00 1.000000e+00 0.000000e+00\n"
+             "P2: 7.188560e+02 0.000000e+00 6.071928e+02 4.538225e+01 0.000000e+00 7.188560e+02 1.852157e+02 "
+             "-1.130887e-01 0.000000e+00 0.000000e+00 1.000000e+00 3.779761e-03\n");
+  const CameraCalibration cam = load_kitti_calib(dir / "calib.txt", 2);
+  const double tz = 3.779761e-03;
+  const Eigen::Vector3d t((4.538225e+01 - 6.071928e+02 * tz) / 7.188560e+02,
+                          (-1.130887e-01 - 1.852157e+02 * tz) / 7.188560e+02, tz);
+  EXPECT_TRUE(cam.T_RS.translation().isApprox(-t, 1e-12)) << cam.T_RS.translation().transpose();
+  EXPECT_GT(std::abs(cam.T_RS.translation().x() + 4.538225e+01 / 7.188560e+02), 2e-3);  // the old formula's error
+}
+
 }  // namespace
 }  // namespace rtslam::io

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
@@ -146,6 +147,35 @@ TEST(Prefetch, StereoStreamIsUnchanged) {
   TempDir dir;
   const std::string root = make_stereo_dataset(dir);
   expect_prefetch_changes_nothing(root, stereo_options());
+}
+
+TEST(Prefetch, SixteenBitImagesAreScaledInStreamOrder) {
+  // A 12-bit camera's 16-bit PNGs, every other frame dark (its largest value fits in 10 bits): each is scaled by the
+  // depth of the stream so far, so a dark frame stays dark. Workers decoding ahead used to scale each by its own
+  // largest value — a dark frame came out 4x brighter than without prefetching.
+  TempDir dir;
+  const std::string root = make_stereo_dataset(dir);
+  cv::RNG rng(11);
+  for (int k = 0; k < kImu / 10; ++k) {
+    for (int c = 0; c < 2; ++c) {
+      cv::Mat img(48, 64, CV_16UC1);
+      rng.fill(img, cv::RNG::UNIFORM, 0, k % 2 == 0 ? 4081 : 766);
+      img.at<std::uint16_t>(0, 0) = k % 2 == 0 ? 4080 : 765;
+      ASSERT_TRUE(cv::imwrite(image_path(root, c, k), img));
+    }
+  }
+  expect_prefetch_changes_nothing(root, stereo_options());
+  Dataset plain = open_dataset(root, stereo_options());
+  const Drained d = drain(*plain.source);
+  int images = 0;
+  for (const Measurement& m : d.items) {
+    if (const auto* f = std::get_if<ImageFrame>(&m)) {
+      ASSERT_EQ(f->image.type(), CV_8UC1);
+      EXPECT_EQ(f->image.at<std::uint8_t>(0, 0), images / 2 % 2 == 0 ? 255 : 48);  // 4080 / 16, 765 / 16 (rounded)
+      ++images;
+    }
+  }
+  EXPECT_EQ(images, 2 * kImu / 10);
 }
 
 TEST(Prefetch, RealEurocStreamIsUnchanged) {

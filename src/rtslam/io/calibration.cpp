@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include <Eigen/SVD>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -94,9 +95,23 @@ Eigen::Matrix4d matrix4(const YAML::Node& node, const std::string& key, const st
   return T;
 }
 
+// Max |RᵀR − I| of a calibration's rotation: below kOrthonormal taken as it is (the published files: ~1e-8), up to
+// kRoughlyOrthonormal (a matrix written with 4–5 decimals) replaced by the nearest rotation, beyond refused.
+constexpr double kOrthonormal = 1e-6, kRoughlyOrthonormal = 1e-3;
+
+double orthonormality_error(const Eigen::Matrix3d& R) {
+  return (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
 Eigen::Isometry3d to_isometry(const Eigen::Matrix4d& T) {
   Eigen::Isometry3d iso = Eigen::Isometry3d::Identity();
-  iso.linear() = T.topLeftCorner<3, 3>();
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  if (orthonormality_error(R) < kOrthonormal) {
+    iso.linear() = R;
+  } else {  // the nearest rotation (polar decomposition); check_extrinsic bounded the error and the sign
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    iso.linear() = svd.matrixU() * svd.matrixV().transpose();
+  }
   iso.translation() = T.topRightCorner<3, 1>();
   return iso;
 }
@@ -237,11 +252,16 @@ void check_extrinsic(const Eigen::Matrix4d& T, const std::string& where, const s
                      std::vector<std::string>* warnings, bool warn_far) {
   if (!T.allFinite()) throw ConfigError(fmt::format("{}: '{}' contains a non-finite number", where, key));
   const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-  const double err = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double err = orthonormality_error(R);
   const double det = R.determinant();
-  if (!(err < 1e-6) || !(det > 0.0)) {
+  if (!(err < kRoughlyOrthonormal) || !(det > 0.0)) {
     throw ConfigError(fmt::format("{}: '{}' rotation is not orthonormal (max |R^T R - I| = {:.3g}, det = {:.6g})",
                                   where, key, err, det));
+  }
+  if (err >= kOrthonormal && warnings != nullptr) {
+    warnings->push_back(fmt::format("{}: '{}' rotation is orthonormal only to {:.2g} (written with few decimals?): "
+                                    "the nearest rotation is used",
+                                    where, key, err));
   }
   const Eigen::RowVector4d last = T.row(3);
   if ((last - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
@@ -387,6 +407,7 @@ Rig kalibr(const std::string& camchain_path, const std::string& imu_path) {
   if (!root.IsMap()) throw ConfigError(fmt::format("{}: expected a mapping", camchain_path));
   Rig rig;
   bool first = true;
+  bool with_imu = false;  // cam0 has T_cam_imu
   for (int i = 0;; ++i) {
     const std::string name = fmt::format("cam{}", i);
     if (!root[name]) break;
@@ -412,10 +433,30 @@ Rig kalibr(const std::string& camchain_path, const std::string& imu_path) {
     if (cam.distortion != DistortionModel::None) cam.distortion_coeffs = numbers(y, "distortion_coeffs", where, -1);
     if (y["rate_hz"]) cam.rate_hz = need<double>(y, "rate_hz", where);
     check_intrinsics(cam, where);
+    // T_cam_imu (camera from IMU: an IMU-camera calibration) puts the camera in R = the IMU. A cameras-only
+    // calibration (kalibr_calibrate_cameras) has none: R is cam0, and camera n follows camera n-1 through
+    // T_cn_cnm1 (camera n from camera n-1).
     if (y["T_cam_imu"]) {
+      if (i > 0 && !with_imu) {
+        throw ConfigError(fmt::format("{}: 'T_cam_imu' while cam0 has none (cam0 is then the reference): give it "
+                                      "for every camera or for none",
+                                      where));
+      }
       const Eigen::Matrix4d T_SR = matrix4(y, "T_cam_imu", where);
       check_extrinsic(T_SR, where, "T_cam_imu", &rig.warnings);
       cam.T_RS = to_isometry(T_SR).inverse();
+      with_imu = true;
+    } else if (i > 0 && with_imu) {
+      throw ConfigError(fmt::format("{}: no 'T_cam_imu' while cam0 has one: give it for every camera", where));
+    } else if (i > 0) {
+      if (!y["T_cn_cnm1"]) {
+        throw ConfigError(fmt::format("{}: neither 'T_cam_imu' nor 'T_cn_cnm1': its pose relative to cam{} is "
+                                      "unknown",
+                                      where, i - 1));
+      }
+      const Eigen::Matrix4d T_n_prev = matrix4(y, "T_cn_cnm1", where);
+      check_extrinsic(T_n_prev, where, "T_cn_cnm1", &rig.warnings);
+      cam.T_RS = rig.cameras.back().T_RS * to_isometry(T_n_prev).inverse();
     }
     if (first && y["timeshift_cam_imu"]) {
       rig.t_d = offset_ns(need<double>(y, "timeshift_cam_imu", where), where, "timeshift_cam_imu");
@@ -500,7 +541,10 @@ CameraCalibration load_kitti_calib(const std::string& path, int camera) {
     if (!std::isfinite(x)) throw ConfigError(fmt::format("{}: '{}' contains a non-finite number", path, key));
   }
   if (!(cam.fx > 0) || !(cam.fy > 0)) throw ConfigError(fmt::format("{}: '{}' has fx or fy <= 0", path, key));
-  cam.T_RS.translation() = Eigen::Vector3d(-(*P)[3] / cam.fx, -(*P)[7] / cam.fy, -(*P)[11]);
+  // P = K [I | t] with K = [fx 0 cx; 0 fy cy; 0 0 1]: t = K⁻¹ P(:, 3), and the camera sits at −t in cam0's frame.
+  const double tz = (*P)[11];
+  cam.T_RS.translation() =
+      -Eigen::Vector3d(((*P)[3] - cam.cx * tz) / cam.fx, ((*P)[7] - cam.cy * tz) / cam.fy, tz);
   if (!cam.T_RS.translation().allFinite()) {
     throw ConfigError(fmt::format("{}: '{}' puts the camera at a non-finite position", path, key));
   }
@@ -571,6 +615,12 @@ Rig rig_yaml(const std::string& path) {
     check_imu(imu, m.where());
     imu.T_RS = read_T(m, "T_RS", nullptr, false);
     m.finish();
+    // The inertial robot's frame R is its IMU (as the EuRoC loader makes it): an IMU given off R moves R onto it,
+    // T_RS(camera) = T_RI⁻¹ T_RS, so that nothing downstream has to apply the IMU's own extrinsic.
+    if (!imu.T_RS.matrix().isIdentity(0.0)) {
+      for (CameraCalibration& cam : rig.cameras) cam.T_RS = imu.T_RS.inverse() * cam.T_RS;
+      imu.T_RS = Eigen::Isometry3d::Identity();
+    }
     rig.imu = imu;
   }
   double t_d_s = 0.0;

@@ -46,7 +46,7 @@ void DecodeAhead::work() {
     lock.unlock();
     Result r;
     try {
-      r.image = read_grey_image(paths_[k], &r.why);
+      r.image = read_grey_image(paths_[k], &r.why, nullptr, /*keep_16bit=*/true);  // scaled by take()'s caller
     } catch (...) {
       r.error = std::current_exception();
     }

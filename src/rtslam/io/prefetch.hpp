@@ -32,7 +32,8 @@ class DecodeAhead {
   DecodeAhead(const DecodeAhead&) = delete;
   DecodeAhead& operator=(const DecodeAhead&) = delete;
 
-  /// Image k of the list as read_grey_image(paths[k], why) gives it, waiting for its worker if needed. Positions
+  /// Image k of the list as read_grey_image(paths[k], why) gives it — except that a 16-bit image is left at its depth
+  /// (keep_16bit), for the caller to scale in stream order —, waiting for its worker if needed. Positions
   /// must not decrease between calls; the ones skipped (a seek) are dropped. Rethrows what a worker's decoding threw.
   cv::Mat take(std::size_t k, std::string* why);
   /// Seconds take() waited so far.

@@ -85,6 +85,7 @@ class RosbagSource final : public Source {
   std::vector<ImageItem> images_;
   std::vector<Item> order_;
   std::size_t pos_ = 0;
+  int image_bits_ = 8;  // significant bits of the 16-bit compressed images so far (to_grey8, in stream order)
 };
 
 std::string zero_stamp_hint(TimeNs t, bool receive_time) {
@@ -318,7 +319,7 @@ cv::Mat RosbagSource::decode(const ImageItem& item, std::string* error) const {
         return {};
       }
       std::string why;
-      cv::Mat grey = decode_grey_image(msg->data.data(), msg->data.size(), &why);
+      cv::Mat grey = decode_grey_image(msg->data.data(), msg->data.size(), &why, nullptr, /*keep_16bit=*/true);
       if (grey.empty()) *error = fmt::format("compressed image ('{}') {}", msg->format, why);
       return grey;
     }
@@ -346,6 +347,11 @@ std::optional<Measurement> RosbagSource::next() {
     frame.path = fmt::format("{}:{}#{}", path_, image_topics_[c], e.k + 1);
     std::string error;
     frame.image = decode(e, &error);
+    if (frame.image.depth() == CV_16U) {  // a 16-bit compressed image: scaled by the depth of those before it
+      std::string why;
+      frame.image = to_grey8(frame.image, &why, &image_bits_);
+      if (frame.image.empty()) error = why;
+    }
     if (frame.image.empty()) {
       reporter_.report(&SourceStats::undecodable_images,
                        fmt::format("{}: {}", where(image_topics_[c], e.k, e.t), error), true);

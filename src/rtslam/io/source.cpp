@@ -138,7 +138,10 @@ void BadInputReporter::report(std::size_t SourceStats::*counter, const std::stri
   }
 }
 
-cv::Mat to_grey8(const cv::Mat& image, std::string* why, int* bits) {
+namespace {
+
+// One channel of 8- or 16-bit unsigned pixels at the image's own depth (see to_grey8); empty, `why` said, otherwise.
+cv::Mat grey_channel(const cv::Mat& image, std::string* why) {
   const auto refuse = [why](std::string reason) {
     if (why) *why = "unsupported: " + std::move(reason);
     return cv::Mat();
@@ -157,7 +160,14 @@ cv::Mat to_grey8(const cv::Mat& image, std::string* why, int* bits) {
     case 4: cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY); break;
     default: return refuse(fmt::format("{} channels (1 to 4 accepted)", image.channels()));
   }
-  if (depth == CV_8U) return grey;
+  return grey;
+}
+
+}  // namespace
+
+cv::Mat to_grey8(const cv::Mat& image, std::string* why, int* bits) {
+  const cv::Mat grey = grey_channel(image, why);
+  if (grey.empty() || grey.depth() == CV_8U) return grey;
   double max_value = 0.0;
   cv::minMaxLoc(grey, nullptr, &max_value);
   int b = bits ? std::clamp(*bits, 8, 16) : 8;
@@ -169,7 +179,7 @@ cv::Mat to_grey8(const cv::Mat& image, std::string* why, int* bits) {
   return out;
 }
 
-cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why, int* bits) {
+cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why, int* bits, bool keep_16bit) {
   const auto fail = [why](std::string reason) {
     if (why) *why = "cannot be decoded: " + std::move(reason);
     return cv::Mat();
@@ -199,10 +209,10 @@ cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::stri
     return fail(fmt::format("{} header rejected by OpenCV", to_string(header->format)));
   }
   if (img.empty()) return fail(fmt::format("truncated or corrupt {}", to_string(header->format)));
-  return to_grey8(img, why, bits);
+  return keep_16bit && img.depth() == CV_16U ? grey_channel(img, why) : to_grey8(img, why, bits);
 }
 
-cv::Mat read_grey_image(const std::string& path, std::string* why, int* bits) {
+cv::Mat read_grey_image(const std::string& path, std::string* why, int* bits, bool keep_16bit) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     if (why) *why = "cannot be opened";
@@ -241,7 +251,7 @@ cv::Mat read_grey_image(const std::string& path, std::string* why, int* bits) {
     if (why) *why = fmt::format("cannot be read: {}", e.what());
     return {};
   }
-  return decode_grey_image(buffer.data(), size, why, bits);
+  return decode_grey_image(buffer.data(), size, why, bits, keep_16bit);
 }
 
 namespace {
@@ -384,6 +394,8 @@ std::optional<Measurement> IndexedSource::next() {
     std::string why;
     frame.image = decode_ahead_ ? decode_ahead_->take(decode_index_[item.index], &why)
                                 : read_grey_image(e.path, &why, &image_bits_);
+    // Decoded ahead, a 16-bit image is scaled here, in stream order: by the depth of the images before it.
+    if (frame.image.depth() == CV_16U) frame.image = to_grey8(frame.image, &why, &image_bits_);
     if (frame.image.empty()) {
       std::error_code fs_error;
       const bool missing = !fs::exists(e.path, fs_error);

@@ -284,13 +284,16 @@ cv::Mat to_grey8(const cv::Mat& image, std::string* why = nullptr, int* bits = n
 /// the readers accept are decoded — PNG, PNM (PBM/PGM/PPM), JPEG, BMP, TIFF — and only up to the size limits of
 /// image_header.hpp, checked on the header before anything is allocated. Returns an empty Mat if the bytes are not
 /// such an image, cannot be decoded or hold pixels to_grey8 refuses; `why` (if given) then says which ("cannot be
-/// decoded: ..." or "unsupported: ..."). This is the decode path of every image reader (read_grey_image). 8-bit grey PNGs take a faster path
-/// with the same pixels (png_grey.hpp).
+/// decoded: ..." or "unsupported: ..."). This is the decode path of every image reader (read_grey_image). 8-bit grey
+/// PNGs take a faster path with the same pixels (png_grey.hpp). `keep_16bit`: a 16-bit image comes back as 16-bit
+/// grey (CV_16UC1), not yet scaled — for decoders running ahead of the stream, whose consumer scales it with to_grey8
+/// in stream order, since the scale depends on the depth of the images before it (`bits`).
 cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why = nullptr,
-                          int* bits = nullptr);
+                          int* bits = nullptr, bool keep_16bit = false);
 
 /// Reads an image file and decodes it with decode_grey_image; an empty Mat if it is missing or cannot be decoded
 /// (`why` says which).
-cv::Mat read_grey_image(const std::string& path, std::string* why = nullptr, int* bits = nullptr);
+cv::Mat read_grey_image(const std::string& path, std::string* why = nullptr, int* bits = nullptr,
+                        bool keep_16bit = false);
 
 }  // namespace rtslam::io

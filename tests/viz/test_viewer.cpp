@@ -5,6 +5,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -38,11 +39,11 @@ struct HttpResponse {
   std::string body;
 };
 
-HttpResponse http_get(int port, const std::string& path) {
+HttpResponse http_get(int port, const std::string& path, const std::string& host = "127.0.0.1") {
   char err[256] = {};
   HttpResponse r;
-  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err, "GET %s HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n",
-                                 path.c_str());
+  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err, "GET %s HTTP/1.0\r\nHost: %s\r\n\r\n",
+                                 path.c_str(), host.c_str());
   if (c == nullptr) {
     ADD_FAILURE() << "GET " << path << ": " << err;
     return r;
@@ -271,9 +272,42 @@ TEST(Viewer, PushNeverWaitsForABrowserThatDoesNotKeepUp) {
 
 TEST(Viewer, AWebSocketFromAnotherOriginIsRefused) {
   Viewer v(loopback());
-  WsClient ws(v.port(), "http://evil.example");
-  EXPECT_TRUE(!ws.connected() || ws.wait_for([](const auto&) { return false; }, 3s) || ws.closed());
-  EXPECT_EQ(v.stats().clients, 0);
+  const std::string port = std::to_string(v.port());
+  // Another site; a name hidden behind user info; another local page (another port).
+  for (const std::string& origin : {std::string("http://evil.example"), "http://localhost:1@evil.example:" + port,
+                                   std::string("http://localhost:1")}) {
+    WsClient ws(v.port(), origin.c_str());
+    EXPECT_TRUE(!ws.connected() || ws.wait_for([](const auto&) { return false; }, 3s) || ws.closed()) << origin;
+    EXPECT_EQ(v.stats().clients, 0) << origin;
+  }
+  WsClient local(v.port(), ("http://localhost:" + port).c_str());  // the page opened as localhost
+  ASSERT_TRUE(local.connected()) << local.error();
+  EXPECT_TRUE(local.wait_for([](const auto& ms) { return WsClient::count_type(ms, "hello") == 1; }));
+}
+
+TEST(Viewer, OnLoopbackItAnswersOnlyLoopbackNames) {
+  // DNS rebinding: a page of evil.example whose name now resolves to 127.0.0.1 sends Host: evil.example.
+  Viewer v(loopback());
+  const std::string port = std::to_string(v.port());
+  EXPECT_EQ(http_get(v.port(), "/api/status", "evil.example:" + port).status, 403);
+  EXPECT_EQ(http_get(v.port(), "/", "evil.example").status, 403);
+  EXPECT_EQ(http_get(v.port(), "/api/status", "localhost:" + port).status, 200);
+  EXPECT_EQ(http_get(v.port(), "/api/status", "127.0.0.1:" + port).status, 200);
+}
+
+TEST(Viewer, AFifthPageIsRefused) {
+  // Each WebSocket holds a server thread: a few pages at most, so that plain requests are still answered.
+  Viewer v(loopback());
+  std::vector<std::unique_ptr<WsClient>> pages;
+  for (int i = 0; i < 4; ++i) {
+    pages.push_back(std::make_unique<WsClient>(v.port()));
+    ASSERT_TRUE(pages.back()->connected());
+    ASSERT_TRUE(pages.back()->wait_for([](const auto& ms) { return WsClient::count_type(ms, "hello") == 1; }));
+  }
+  WsClient fifth(v.port());
+  EXPECT_TRUE(!fifth.connected() || fifth.wait_for([](const auto&) { return false; }, 3s) || fifth.closed());
+  EXPECT_EQ(v.stats().clients, 4);
+  EXPECT_EQ(http_get(v.port(), "/api/status").status, 200);
 }
 
 TEST(Viewer, AddressesAreIpv4AndPortsAndBadOnesAreNamed) {
@@ -436,6 +470,46 @@ TEST(Replay, TheViewerServesTheRecordingAndItsOverlays) {
   EXPECT_EQ(png.content_type, "image/png");
   EXPECT_EQ(png.body.substr(1, 3), "PNG");
   EXPECT_EQ(http_get(v.port(), "/api/overlay/99").status, 404);
+}
+
+TEST(Replay, AnOverlayIndexNamingAFileOutsideItsFolderIsRefused) {
+  // A run folder from elsewhere whose overlays/index.csv names /etc/passwd, ../secret or a symbolic link: the
+  // viewer served those files as image/png.
+  const fs::path dir = write_run_folder();
+  const fs::path index = dir / "overlays" / "index.csv";
+  std::string original;
+  {
+    std::ifstream in(index);
+    original.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const auto second_line = original.find('\n') + 1;
+  const auto file_start = original.find(',', original.find(',', second_line) + 1) + 1;
+  const auto file_end = original.find(',', file_start);
+  const std::string first_file = original.substr(file_start, file_end - file_start);
+  for (const std::string& bad : std::vector<std::string>{"/etc/passwd", "../secret.png", "sub/dir.png"}) {
+    std::string text = original;
+    text.replace(file_start, file_end - file_start, bad);
+    std::ofstream(index) << text;
+    try {
+      load_run(dir.string());
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const IoError& e) {
+      EXPECT_NE(std::string(e.what()).find("index.csv:2: '" + bad + "' is not a file name in the overlays folder"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  // A symbolic link in the folder (to a file outside it) is not served.
+  std::ofstream(index) << original;
+  std::ofstream(dir / "secret.txt") << "TOP-SECRET";
+  fs::remove(dir / "overlays" / first_file);
+  fs::create_symlink(dir / "secret.txt", dir / "overlays" / first_file);
+  Viewer v(loopback());
+  v.show_recording(load_run(dir.string()));
+  const HttpResponse r = http_get(v.port(), "/api/overlay/0");
+  EXPECT_EQ(r.status, 404);
+  EXPECT_EQ(r.body.find("TOP-SECRET"), std::string::npos);
+  EXPECT_EQ(http_get(v.port(), "/api/overlay/1").status, 200);
 }
 
 }  // namespace

@@ -100,6 +100,11 @@ std::vector<OverlayIndexRow> read_overlay_index(const std::string& path) {
     r.index = static_cast<int>(v[0]);
     r.t = v[1];
     r.file = std::string(f[2]);
+    // A file of the overlays folder itself (the writer's overlay_NNNNN.png): a path elsewhere would be served.
+    if (r.file.empty() || r.file == "." || r.file == ".." || r.file.find_first_of("/\\") != std::string::npos) {
+      throw IoError(fmt::format("{}:{}: '{}' is not a file name in the overlays folder", path, in.line_number(),
+                                r.file));
+    }
     r.stats.t = r.t;
     r.stats.visible = static_cast<int>(v[3]);
     r.stats.searched = static_cast<int>(v[4]);

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <list>
@@ -83,6 +84,14 @@ std::pair<std::string, int> parse_address(const std::string& address) {
 
 namespace {
 
+// JSON text of a message; a string that is not UTF-8 (a folder or dataset name) becomes U+FFFD rather than an error.
+std::string dump_json(const nlohmann::json& j) {
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+constexpr int kMaxClients = 4;                          // pages connected at once (each holds a server thread)
+constexpr std::uintmax_t kMaxOverlayBytes = 64u << 20;  // an overlay PNG beyond this is not served
+
 // ---- JSON of the messages (the page's protocol, see web/js/main.js) ---------------------------------------------
 
 json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
@@ -122,7 +131,7 @@ std::string history_entry_json(const HistoryEntry& h) {
     e["nisb"] = {lo, hi};
   }
   if (std::isfinite(h.nees)) e["nees"] = h.nees;
-  return e.dump();
+  return dump_json(e);
 }
 
 // Landmarks as [id, euclidean, x, y, z, a1x, a1y, a1z, a2..., a3..., flags]: a_k the 3σ principal half-axes of the
@@ -314,7 +323,7 @@ class Viewer::Impl {
     if (host_ == "0.0.0.0") logger("viz")->warn("viewer: listening on ALL interfaces (address {})", opt_.address);
     const std::string ports = fmt::format("{}:{}", host, port);
     const char* options[] = {"listening_ports", ports.c_str(),
-                             "num_threads", "8",
+                             "num_threads", "16",  // kMaxClients WebSockets hold one each
                              "request_timeout_ms", "10000",
                              "websocket_timeout_ms", "3600000",
                              "enable_keep_alive", "yes",
@@ -349,7 +358,20 @@ class Viewer::Impl {
     logger("viz")->info("viewer: {}", url());
   }
 
-  static int http(mg_connection* conn, void* cbdata) { return static_cast<Impl*>(cbdata)->handle_http(conn); }
+  static int http(mg_connection* conn, void* cbdata) {
+    auto* self = static_cast<Impl*>(cbdata);
+    if (!self->host_allowed(conn)) {
+      mg_send_http_error(conn, 403, "%s", "this viewer answers to 127.0.0.1 and localhost only");
+      return 403;
+    }
+    try {  // nothing may unwind through CivetWeb's C frames
+      return self->handle_http(conn);
+    } catch (const std::exception& e) {
+      logger("viz")->warn("viewer: request failed: {}", e.what());
+      mg_send_http_error(conn, 500, "%s", "internal error");
+      return 500;
+    }
+  }
 
   int handle_http(mg_connection* conn) {
     const mg_request_info* ri = mg_get_request_info(conn);
@@ -369,7 +391,7 @@ class Viewer::Impl {
       return 200;
     };
     if (uri == "/api/status") {
-      const std::string body = status_json().dump();
+      const std::string body = dump_json(status_json());
       return send("application/json", body.data(), body.size(), "no-store");
     }
     if (uri.rfind("/api/overlay/", 0) == 0) {
@@ -394,6 +416,15 @@ class Viewer::Impl {
         mg_send_http_error(conn, 404, "no overlay %d", index);
         return 404;
       }
+      // Only a regular file of the overlays folder (load_run admits bare file names only): not a symbolic link, a
+      // device or a FIFO, and not beyond any overlay's size.
+      std::error_code ec;
+      const auto status = std::filesystem::symlink_status(f->path, ec);
+      const auto size = ec ? 0 : std::filesystem::file_size(f->path, ec);
+      if (ec || status.type() != std::filesystem::file_type::regular || size > kMaxOverlayBytes) {
+        mg_send_http_error(conn, 404, "cannot read overlay %d", index);
+        return 404;
+      }
       std::ifstream in(f->path, std::ios::binary);
       const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
       if (!in && bytes.empty()) {
@@ -407,21 +438,50 @@ class Viewer::Impl {
     return 404;
   }
 
-  // A page of another origin may not read the run (cross-site WebSocket): the Origin header, when sent, must name
-  // the host the page was loaded from (the Host header's name) or a loopback name.
-  static std::string host_name(std::string s) {
+  // "scheme://user@host:port/path" (or a Host header's "host:port") → {host in lower case, port}.
+  static std::pair<std::string, std::string> split_host(std::string s) {
     if (const auto scheme = s.find("://"); scheme != std::string::npos) s = s.substr(scheme + 3);
-    if (const auto slash = s.find('/'); slash != std::string::npos) s = s.substr(0, slash);
-    if (!s.empty() && s.front() == '[') return s.substr(0, s.find(']') + 1);
-    if (const auto colon = s.rfind(':'); colon != std::string::npos) s = s.substr(0, colon);
-    return s;
+    if (const auto end = s.find_first_of("/?#"); end != std::string::npos) s = s.substr(0, end);
+    if (const auto at = s.rfind('@'); at != std::string::npos) s = s.substr(at + 1);
+    std::string host = s, port;
+    if (!s.empty() && s.front() == '[') {
+      const auto close = s.find(']');
+      host = s.substr(0, close == std::string::npos ? s.size() : close + 1);
+      if (close != std::string::npos && close + 1 < s.size() && s[close + 1] == ':') port = s.substr(close + 2);
+    } else if (const auto colon = s.rfind(':'); colon != std::string::npos) {
+      host = s.substr(0, colon);
+      port = s.substr(colon + 1);
+    }
+    std::transform(host.begin(), host.end(), host.begin(), [](unsigned char c) { return std::tolower(c); });
+    return {host, port};
   }
-  static int ws_connect(const mg_connection* conn, void*) {
+  // Bound to a loopback address (the default), the viewer answers only requests that name a loopback host: a page of
+  // another site whose name was made to resolve to 127.0.0.1 (DNS rebinding) sends that name as Host and is refused.
+  // Bound to another address, the user chose to expose it (with a warning): any Host.
+  bool loopback_name(const std::string& name) const {
+    return name == "127.0.0.1" || name == "localhost" || name == host_;
+  }
+  bool host_allowed(const mg_connection* conn) const {
+    if (host_.rfind("127.", 0) != 0) return true;
+    const char* host = mg_get_header(conn, "Host");
+    return host == nullptr || loopback_name(split_host(host).first);  // HTTP/1.0 clients may send none; browsers do
+  }
+  // A page of another origin may not read the run (cross-site WebSocket): the Origin header, when sent, must name
+  // this viewer — a loopback name (or the Host header's name when bound beyond loopback) and this port; and a few
+  // pages at most (each holds a server thread).
+  static int ws_connect(const mg_connection* conn, void* cbdata) {
+    const auto* self = static_cast<const Impl*>(cbdata);
+    if (!self->host_allowed(conn)) return 1;
+    if (self->clients_count_.load() >= kMaxClients) {
+      logger("viz")->warn("viewer: WebSocket refused: {} pages are connected already", kMaxClients);
+      return 1;
+    }
     const char* origin = mg_get_header(conn, "Origin");
     if (origin == nullptr) return 0;
     const char* host = mg_get_header(conn, "Host");
-    const std::string o = host_name(origin);
-    if (o == "127.0.0.1" || o == "localhost" || o == "[::1]" || (host != nullptr && o == host_name(host))) return 0;
+    const auto [o, o_port] = split_host(origin);
+    const bool name_ok = self->loopback_name(o) || (host != nullptr && o == split_host(host).first);
+    if (name_ok && o_port == std::to_string(self->port_)) return 0;
     logger("viz")->warn("viewer: WebSocket from origin '{}' refused (host {})", origin, host ? host : "?");
     return 1;
   }
@@ -450,7 +510,7 @@ class Viewer::Impl {
         int v = c->in_flight.load();
         while (v > 0 && !c->in_flight.compare_exchange_weak(v, v - 1)) {
         }
-        self->queue_.wake();
+        if (v > 0 && v <= 2) self->queue_.wake();  // room for a frame again (a flood of acks wakes nothing)
       }
     }
     return 1;
@@ -511,7 +571,7 @@ class Viewer::Impl {
       history_json_.clear();
       for (const auto& h : history_) history_json_.push_back(history_entry_json(h));
       gt_seen_ = recording_seen_->ground_truth ? std::make_shared<Trajectory>(*recording_seen_->ground_truth) : nullptr;
-      gt_json_ = gt_seen_ ? ground_truth_json(*gt_seen_).dump() : "null";
+      gt_json_ = gt_seen_ ? dump_json(ground_truth_json(*gt_seen_)) : "null";
       fit_history_size_ = 0;
       {
         std::lock_guard<std::mutex> slock(status_mu_);
@@ -521,7 +581,7 @@ class Viewer::Impl {
       }
     } else if (gt_ != gt_seen_) {
       gt_seen_ = gt_;
-      gt_json_ = gt_seen_ ? ground_truth_json(*gt_seen_).dump() : "null";
+      gt_json_ = gt_seen_ ? dump_json(ground_truth_json(*gt_seen_)) : "null";
       nees_.reset();
       if (gt_seen_) {
         nees_.emplace(*gt_seen_);
@@ -589,7 +649,7 @@ class Viewer::Impl {
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) R.push_back(S.R(i, j));
     m["R"] = std::move(R);
-    align_json_ = m.dump();
+    align_json_ = dump_json(m);
     ++align_version_;
   }
 
@@ -616,7 +676,7 @@ class Viewer::Impl {
               {"n", {r.stats.visible, r.stats.searched, r.stats.matched, r.stats.ransac_inliers, r.stats.updated,
                      r.stats.initialized, static_cast<int>(r.landmarks.size())}},
               {"image", p.jpeg.size()}};
-    p.json = f.dump();
+    p.json = dump_json(f);
     prepared_ = std::move(p);
   }
 
@@ -638,7 +698,7 @@ class Viewer::Impl {
       h["map_types_known"] = rec.map_types_known;
       h["dir"] = rec.dir;
     }
-    return h.dump();
+    return dump_json(h);
   }
 
   // The final map of a replay, as a frame without image.
@@ -651,7 +711,7 @@ class Viewer::Impl {
               {"landmarks", landmarks_json(rec.map, {}, rec.map_types_known ? 1 : 0)},
               {"image", 0}};
     if (!rec.history.empty()) f["T_WR"] = pose_json(rec.history.back().T_WR);
-    return f.dump();
+    return dump_json(f);
   }
 
   bool write(Client& c, int opcode, const void* data, std::size_t size) {
@@ -721,7 +781,7 @@ class Viewer::Impl {
       }
       if (finished_ && !c.finished_sent && (!latest_ || c.frame_sent == latest_->index || recording_mode_)) {
         const json s = {{"type", "status"}, {"finished", true}, {"pushed", queue_.pushed()}, {"dropped", queue_.dropped()}};
-        if (!write_text(c, s.dump())) continue;
+        if (!write_text(c, dump_json(s))) continue;
         c.finished_sent = true;
       }
     }

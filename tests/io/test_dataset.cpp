@@ -206,6 +206,18 @@ TEST(Dataset, ImageFolderWithTimestampsUsesNaturalOrder) {
   ASSERT_EQ(d.images.size(), 3u);
   EXPECT_EQ(d.images[2].image.at<uint8_t>(0, 0), 10);  // img10 after img2
   EXPECT_EQ(d.images[2].t, 750'000'000);
+  // A rate (slam/rate_hz, --rate) is for folders without times: the file's times win and the rig says so; a rate and
+  // an explicit timestamps file contradict each other (the rate used to replace the file's times silently).
+  DatasetOptions with_rate;
+  with_rate.rate_hz = 10.0;
+  Dataset rated = open_dataset(dir.str(), with_rate);
+  EXPECT_EQ(drain(*rated.source, true).images[2].t, 750'000'000);
+  ASSERT_EQ(rated.rig.warnings.size(), 1u);
+  EXPECT_NE(rated.rig.warnings[0].find("the rate 10 Hz is not used: the images have their times in"), std::string::npos)
+      << rated.rig.warnings[0];
+  with_rate.timestamps = dir / "times.txt";
+  EXPECT_THROW_WITH(open_dataset(dir.str(), with_rate), ConfigError,
+                    "and the rate 10 Hz both give the images' times: give one");
   // A timestamps file with fewer lines than images is an error, not a silent drop.
   write_text(dir / "times.txt", "0.5\n0.6\n");
   EXPECT_THROW_WITH(open_dataset(dir.str()), DataError, "2 timestamps for 3 images");

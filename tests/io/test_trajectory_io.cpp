@@ -100,6 +100,21 @@ TEST(Text, LineReaderRefusesAPipeInsteadOfBlocking) {
   EXPECT_THROW_WITH(LineReader{dir / "absent.csv"}, IoError, "absent.csv: file not found");
 }
 
+TEST(Text, LineReaderDropsAByteOrderMarkAndCarriageReturns) {
+  // A data.csv saved by a Windows editor: "\xEF\xBB\xBF#timestamp [ns],filename\r\n..." made line 1 malformed.
+  TempDir dir;
+  write_text(dir / "data.csv", "\xEF\xBB\xBF#timestamp [ns],filename\r\n1,a.png\r\n\xEF\xBB\xBF"
+                                  "2,b.png\n");
+  LineReader in(dir / "data.csv");
+  std::string line;
+  ASSERT_TRUE(in.next(line));
+  EXPECT_EQ(line, "#timestamp [ns],filename");
+  ASSERT_TRUE(in.next(line));
+  EXPECT_EQ(line, "1,a.png");
+  ASSERT_TRUE(in.next(line));
+  EXPECT_EQ(line, "\xEF\xBB\xBF" "2,b.png");  // only the file's first bytes are a byte-order mark
+}
+
 TEST(Text, DoubleOutOfRangeIsRefusedNotZero) {
   // Review 27 Nov: from_chars leaves its output unset out of range, and "1e400" was read as the caller's 0.
   double y = 42.0;

@@ -335,7 +335,18 @@ Dataset open_images(const fs::path& root, const DatasetOptions& o) {
   BadInputReporter reporter(o.bad_input, scratch);
   std::vector<ImageEntry> images;
   const std::string ts = o.timestamps.empty() ? first_existing(root, {"times.txt", "timestamps.txt"}) : o.timestamps;
-  if (!ts.empty() && o.rate_hz <= 0) {
+  // The images' own times win over a rate (a rate is for folders without them, docs/configuration.md); both given
+  // explicitly contradict each other.
+  if (!o.timestamps.empty() && o.rate_hz > 0) {
+    throw ConfigError(fmt::format("{}: the timestamps file {} and the rate {:g} Hz both give the images' times: give "
+                                  "one (--timestamps or --rate / slam/rate_hz)",
+                                  root.string(), o.timestamps, o.rate_hz));
+  }
+  if (!ts.empty() && o.rate_hz > 0) {
+    ds.rig.warnings.push_back(fmt::format("{}: the rate {:g} Hz is not used: the images have their times in {}",
+                                          root.string(), o.rate_hz, ts));
+  }
+  if (!ts.empty()) {
     // One time per line in seconds, for the images in sorted order; or `time filename` lines.
     LineReader in(ts);
     std::string line;

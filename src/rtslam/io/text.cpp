@@ -163,6 +163,8 @@ bool LineReader::next(std::string& line) {
   if (!std::getline(in_, line)) return false;
   ++line_;
   if (!line.empty() && line.back() == '\r') line.pop_back();
+  // A UTF-8 byte-order mark (files saved by some Windows editors) is not part of the first line.
+  if (line_ == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
   return true;
 }
 

@@ -151,6 +151,18 @@ TEST(Dataset, ReadsTumLayout) {
   EXPECT_EQ(d.images[1].t, 1305031102211214000);
   // Converted to grey with OpenCV's weights: 0.299 R + 0.587 G + 0.114 B for (B, G, R) = (20, 40, 60).
   EXPECT_NEAR(d.images[2].image.at<uint8_t>(0, 0), 0.299 * 60 + 0.587 * 40 + 0.114 * 20, 1.0);
+  // A flaw in the ground truth (times going backwards): an error naming it under the error policy; with
+  // --bad-input skip the run goes on without it (it serves the evaluation only) and the rig says why.
+  write_text(dir / "groundtruth.txt", "1305031102.2 1 0 0 0 0 0 1\n1305031102.1 1 0 0 0 0 0 1\n");
+  EXPECT_THROW_WITH(open_dataset(dir.str()), Error, "groundtruth.txt");
+  DatasetOptions skip;
+  skip.bad_input = BadInputPolicy::Skip;
+  Dataset without = open_dataset(dir.str(), skip);
+  EXPECT_FALSE(without.ground_truth.has_value());
+  ASSERT_EQ(without.rig.warnings.size(), 1u);
+  EXPECT_NE(without.rig.warnings[0].find("ground truth not used (no accuracy figures): "), std::string::npos);
+  EXPECT_NE(without.rig.warnings[0].find("groundtruth.txt"), std::string::npos) << without.rig.warnings[0];
+  EXPECT_EQ(drain(*without.source, true).images.size(), 3u);
 }
 
 TEST(Dataset, ReadsKittiLayout) {

@@ -20,6 +20,19 @@ namespace rtslam::io {
 namespace fs = std::filesystem;
 namespace {
 
+// A dataset's ground truth, for the evaluation after the run only (nothing in the estimator reads it): a flawed file
+// fails the open under the error policy; with --bad-input skip it is left out with a warning and the run goes on.
+std::optional<Trajectory> read_ground_truth(const fs::path& path, TrajectoryFormat format, const DatasetOptions& o,
+                                            Rig& rig) {
+  try {
+    return read_trajectory(path.string(), format);
+  } catch (const Error& e) {
+    if (o.bad_input != BadInputPolicy::Skip) throw;
+    rig.warnings.push_back(fmt::format("ground truth not used (no accuracy figures): {}", e.what()));
+    return std::nullopt;
+  }
+}
+
 bool is_header(std::string_view s) {
   s = trim(s);
   return !s.empty() && (s.front() == '#' || std::isalpha(static_cast<unsigned char>(s.front())));
@@ -178,7 +191,7 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
   src->add_parse_problems(scratch);
   ds.source = std::move(src);
   const fs::path gt = root / "state_groundtruth_estimate0" / "data.csv";
-  if (fs::is_regular_file(gt)) ds.ground_truth = read_trajectory(gt.string(), TrajectoryFormat::EurocCsv);
+  if (fs::is_regular_file(gt)) ds.ground_truth = read_ground_truth(gt, TrajectoryFormat::EurocCsv, o, ds.rig);
   return ds;
 }
 
@@ -229,7 +242,7 @@ Dataset open_tum(const fs::path& root, const DatasetOptions& o) {
   src->add_parse_problems(scratch);
   ds.source = std::move(src);
   if (fs::is_regular_file(root / "groundtruth.txt")) {
-    ds.ground_truth = read_trajectory((root / "groundtruth.txt").string(), TrajectoryFormat::Tum);
+    ds.ground_truth = read_ground_truth(root / "groundtruth.txt", TrajectoryFormat::Tum, o, ds.rig);
   }
   return ds;
 }
@@ -303,7 +316,10 @@ Dataset open_kitti(const fs::path& seq, const DatasetOptions& o) {
   ds.source = std::move(src);
   const fs::path poses = seq.parent_path().parent_path() / "poses" / (seq.filename().string() + ".txt");
   if (fs::is_regular_file(poses)) {
-    Trajectory gt = read_trajectory(poses.string(), TrajectoryFormat::Kitti);
+    ds.ground_truth = read_ground_truth(poses, TrajectoryFormat::Kitti, o, ds.rig);
+  }
+  if (ds.ground_truth) {
+    Trajectory& gt = *ds.ground_truth;
     if (gt.poses.size() == times.size()) {
       for (size_t i = 0; i < times.size(); ++i) gt.poses[i].t = times[i];
       gt.has_timestamps = true;
@@ -311,7 +327,6 @@ Dataset open_kitti(const fs::path& seq, const DatasetOptions& o) {
       logger("io")->warn("{}: {} poses for {} images: ground truth kept without timestamps", poses.string(),
                          gt.poses.size(), times.size());
     }
-    ds.ground_truth = std::move(gt);
   }
   return ds;
 }

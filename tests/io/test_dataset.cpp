@@ -103,6 +103,65 @@ TEST(Dataset, EurocStereoReportsTheRealMissingCam1Images) {
   EXPECT_NE(ds.source->stats().summary().find("4 missing images"), std::string::npos);
 }
 
+TEST(Dataset, EurocImuCalibrationIsNeededOnlyByInertialRunsAndFillsACameraOnlyCalibration) {
+  // A folder without imu0/sensor.yaml (TUM-VI's export) opens for a run without the IMU; a calibration file without
+  // an IMU (a Kalibr camchain) takes the folder's IMU noise instead of failing with "no IMU".
+  TempDir dir;
+  Rig rig;
+  CameraCalibration cam;
+  cam.name = "cam0";
+  cam.width = 64;
+  cam.height = 48;
+  cam.rate_hz = 20;
+  cam.fx = cam.fy = 50;
+  cam.cx = 32;
+  cam.cy = 24;
+  rig.cameras.push_back(cam);
+  ImuCalibration imu;
+  imu.rate_hz = 200;
+  imu.gyro_noise_density = 1.7e-4;
+  imu.gyro_random_walk = 2e-5;
+  imu.accel_noise_density = 2e-3;
+  imu.accel_random_walk = 3e-3;
+  rig.imu = imu;
+  const std::string root = dir / "seq";
+  {
+    EurocWriter w(root, rig);
+    for (int i = 0; i < 20; ++i) {
+      ImuSample s;
+      s.t = 1'000'000'000 + i * 5'000'000;
+      s.accel = Eigen::Vector3d(0, 0, 9.81);
+      w.add_imu(s);
+      if (i % 10 == 0) w.add_image(0, s.t, cv::Mat(48, 64, CV_8UC1, cv::Scalar(i)));
+    }
+    w.close();
+  }
+  write_text(dir / "camchain.yaml", R"(cam0:
+  T_cam_imu: [[1, 0, 0, 0.05], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+  camera_model: pinhole
+  distortion_model: none
+  distortion_coeffs: []
+  intrinsics: [50, 50, 32, 24]
+  resolution: [64, 48]
+)");
+  DatasetOptions with_camchain;
+  with_camchain.calibration = dir / "camchain.yaml";
+  const Dataset filled = open_dataset(root, with_camchain);
+  ASSERT_TRUE(filled.rig.imu.has_value());
+  EXPECT_EQ(filled.rig.imu->gyro_noise_density, 1.7e-4);
+  EXPECT_TRUE(filled.rig.imu->T_RS.matrix().isIdentity(0.0));
+  EXPECT_DOUBLE_EQ(filled.rig.cameras[0].T_RS.translation().x(), -0.05);  // the camchain's extrinsic
+  ASSERT_EQ(filled.rig.warnings.size(), 1u);
+  EXPECT_NE(filled.rig.warnings[0].find("has no IMU: its noise densities and rate are taken from"), std::string::npos);
+  fs::remove(fs::path(root) / "mav0/imu0/sensor.yaml");
+  DatasetOptions mono;
+  mono.use_imu = false;
+  const Dataset no_imu = open_dataset(root, mono);
+  EXPECT_FALSE(no_imu.rig.imu.has_value());
+  EXPECT_EQ(drain(*no_imu.source, true).images.size(), 2u);
+  EXPECT_THROW_WITH(open_dataset(root), IoError, "imu0/sensor.yaml");  // an inertial run needs it
+}
+
 TEST(Dataset, ReadsMonoSlamSequenceAsImageFolder) {
   if (!fs::exists(test::monoslam_dir())) GTEST_SKIP() << "dataset monoslam-davison not found";
   DatasetOptions o;

@@ -148,8 +148,10 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
   Eigen::Isometry3d T_BI = Eigen::Isometry3d::Identity();
   const fs::path imu_dir = root / "imu0";
   const bool has_imu = fs::is_regular_file(imu_dir / "data.csv");
+  const bool has_imu_yaml = fs::is_regular_file(imu_dir / "sensor.yaml");
   if (o.calibration.empty()) {
-    if (has_imu) {
+    // A run without the IMU does not need its sensor.yaml (TUM-VI's export has none): R is then the body frame.
+    if (has_imu && (o.use_imu || has_imu_yaml)) {
       ds.rig.imu = load_euroc_imu((imu_dir / "sensor.yaml").string());
       T_BI = ds.rig.imu->T_RS;
       ds.rig.imu->T_RS = Eigen::Isometry3d::Identity();
@@ -166,6 +168,14 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
     ds.rig.imu = all.imu;
     ds.rig.t_d = all.t_d;
     ds.rig.warnings = all.warnings;
+    if (!ds.rig.imu && has_imu && o.use_imu && has_imu_yaml) {
+      // A camera calibration (a Kalibr camchain: R is the IMU already) with the folder's IMU noise and rate; the
+      // IMU's own extrinsic is the camchain's business.
+      ds.rig.imu = load_euroc_imu((imu_dir / "sensor.yaml").string());
+      ds.rig.imu->T_RS = Eigen::Isometry3d::Identity();
+      ds.rig.warnings.push_back(fmt::format("{} has no IMU: its noise densities and rate are taken from {}",
+                                            o.calibration, (imu_dir / "sensor.yaml").string()));
+    }
     for (int c : o.cameras) {
       if (c < 0 || static_cast<size_t>(c) >= all.cameras.size()) {
         throw ConfigError(fmt::format("{}: has no camera {}", o.calibration, c));

@@ -310,6 +310,10 @@ TEST(Calibration, KalibrCamerasOnlyChainsEachCameraToThePreviousOne) {
   // cam2 follows cam1: 5 cm further along cam1's x.
   const Eigen::Vector3d p2 = rig.cameras[2].T_RS.translation();
   EXPECT_LT((p2 - (rig.cameras[1].T_RS * Eigen::Vector3d(0.05, 0, 0))).norm(), 1e-12);
+  EXPECT_FALSE(rig.r_is_imu);
+  // Its cameras are not placed relative to any IMU: an IMU file cannot be paired with it.
+  EXPECT_THROW_WITH(load_kalibr(dir / "camchain.yaml", dir / "imu.yaml"), ConfigError,
+                    "a cameras-only calibration (no 'T_cam_imu') with the IMU file");
   // A camera after cam0 with neither key, or T_cam_imu on some cameras only: errors naming the camera.
   write_text(dir / "orphan.yaml", "cam0:\n" + intrinsics + "cam1:\n" + intrinsics);
   EXPECT_THROW_WITH(load_kalibr(dir / "orphan.yaml"), ConfigError,

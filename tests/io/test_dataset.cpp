@@ -153,6 +153,20 @@ TEST(Dataset, EurocImuCalibrationIsNeededOnlyByInertialRunsAndFillsACameraOnlyCa
   EXPECT_DOUBLE_EQ(filled.rig.cameras[0].T_RS.translation().x(), -0.05);  // the camchain's extrinsic
   ASSERT_EQ(filled.rig.warnings.size(), 1u);
   EXPECT_NE(filled.rig.warnings[0].find("has no IMU: its noise densities and rate are taken from"), std::string::npos);
+  // A cameras-only camchain (no T_cam_imu: R is cam0) cannot be completed so: the IMU's pose is unknown.
+  write_text(dir / "cameras_only.yaml", R"(cam0:
+  camera_model: pinhole
+  distortion_model: none
+  distortion_coeffs: []
+  intrinsics: [50, 50, 32, 24]
+  resolution: [64, 48]
+)");
+  DatasetOptions cameras_only;
+  cameras_only.calibration = dir / "cameras_only.yaml";
+  EXPECT_THROW_WITH(open_dataset(root, cameras_only), ConfigError,
+                    "no IMU, and its cameras are not given relative to one (no T_cam_imu)");
+  cameras_only.use_imu = false;  // a monocular run needs no IMU
+  EXPECT_EQ(open_dataset(root, cameras_only).rig.cameras.size(), 1u);
   fs::remove(fs::path(root) / "mav0/imu0/sensor.yaml");
   DatasetOptions mono;
   mono.use_imu = false;
@@ -277,8 +291,8 @@ TEST(Dataset, ImageFolderWithTimestampsUsesNaturalOrder) {
   ASSERT_EQ(d.images.size(), 3u);
   EXPECT_EQ(d.images[2].image.at<uint8_t>(0, 0), 10);  // img10 after img2
   EXPECT_EQ(d.images[2].t, 750'000'000);
-  // A rate (slam/rate_hz, --rate) is for folders without times: the file's times win and the rig says so; a rate and
-  // an explicit timestamps file contradict each other (the rate used to replace the file's times silently).
+  // A rate (slam/rate_hz, --rate) is for folders without times: the file's times win — found beside the images or
+  // given with --timestamps — and the rig says so (the rate used to replace the file's times silently).
   DatasetOptions with_rate;
   with_rate.rate_hz = 10.0;
   Dataset rated = open_dataset(dir.str(), with_rate);
@@ -287,8 +301,9 @@ TEST(Dataset, ImageFolderWithTimestampsUsesNaturalOrder) {
   EXPECT_NE(rated.rig.warnings[0].find("the rate 10 Hz is not used: the images have their times in"), std::string::npos)
       << rated.rig.warnings[0];
   with_rate.timestamps = dir / "times.txt";
-  EXPECT_THROW_WITH(open_dataset(dir.str(), with_rate), ConfigError,
-                    "and the rate 10 Hz both give the images' times: give one");
+  Dataset explicit_times = open_dataset(dir.str(), with_rate);
+  EXPECT_EQ(drain(*explicit_times.source, true).images[2].t, 750'000'000);
+  EXPECT_EQ(explicit_times.rig.warnings.size(), 1u);
   // A timestamps file with fewer lines than images is an error, not a silent drop.
   write_text(dir / "times.txt", "0.5\n0.6\n");
   EXPECT_THROW_WITH(open_dataset(dir.str()), DataError, "2 timestamps for 3 images");

@@ -1,5 +1,6 @@
 // The viewer's server on loopback: the page and its assets over HTTP, frames over WebSocket (JSON + JPEG), the
 // history for late clients, slow clients, the Origin check, addresses, and the replay of a run folder.
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
@@ -247,6 +248,49 @@ TEST(Viewer, ALateClientGetsTheWholeHistoryAndTheLatestFrame) {
   EXPECT_EQ(s.dropped + s.processed, 50);
 }
 
+TEST(Viewer, ALongLiveRunKeepsABoundedThinnedHistory) {
+  // A live camera for hours: the record grew by about 1 KB a frame without bound. With room for 100 records, 400
+  // frames leave at most 100, spanning the whole run in time order (older parts at a lower rate).
+  ViewerOptions o = loopback();
+  o.max_history = 100;
+  Viewer v(o);
+  for (int i = 0; i < 400; ++i) v.push(frame(i));
+  v.finish();
+  const auto taken_in = [&v] {
+    const ViewerStats s = v.stats();
+    return s.dropped + s.processed == 400;
+  };
+  for (int k = 0; k < 1000 && !taken_in(); ++k) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(taken_in());
+  const json status = json::parse(http_get(v.port(), "/api/status").body);
+  EXPECT_LE(status["history"].get<int>(), 100);
+  EXPECT_GT(status["history"].get<int>(), 25);
+  EXPECT_GT(status["history_thinned"].get<int>(), 0);
+  WsClient ws(v.port());
+  ASSERT_TRUE(ws.connected()) << ws.error();
+  ASSERT_TRUE(ws.wait_for([](const auto& ms) { return WsClient::count_type(ms, "status") == 1; }));
+  std::vector<int> indices;
+  for (const auto& m : ws.messages()) {
+    if (m.binary) continue;
+    const json j = m.as_json();
+    if (j["type"] == "hello") indices.clear();  // a restart: the record sent anew
+    if (j["type"] == "history") {
+      for (const auto& e : j["entries"]) indices.push_back(e["i"].get<int>());
+    }
+  }
+  ASSERT_EQ(static_cast<int>(indices.size()), status["history"].get<int>());
+  EXPECT_EQ(indices.front(), 0);
+  EXPECT_EQ(indices.back(), 399);
+  EXPECT_TRUE(std::is_sorted(indices.begin(), indices.end()));
+  EXPECT_THROW(
+      [] {
+        ViewerOptions bad = loopback();
+        bad.max_history = 10;
+        bad.validate();
+      }(),
+      ConfigError);
+}
+
 TEST(Viewer, PushNeverWaitsForABrowserThatDoesNotKeepUp) {
   ViewerOptions o = loopback();
   o.queue_frames = 2;
@@ -279,6 +323,18 @@ TEST(Viewer, AWebSocketFromAnotherOriginIsRefused) {
     WsClient ws(v.port(), origin.c_str());
     EXPECT_TRUE(!ws.connected() || ws.wait_for([](const auto&) { return false; }, 3s) || ws.closed()) << origin;
     EXPECT_EQ(v.stats().clients, 0) << origin;
+  }
+  // Through a tunnel (ssh -L 9000:127.0.0.1:PORT): Host and Origin name the tunnel's port — the page's own.
+  {
+    char err[256] = {};
+    const std::string request =
+        "GET /ws HTTP/1.1\r\nHost: localhost:9000\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+        "Origin: http://localhost:9000\r\n\r\n";
+    mg_connection* c = mg_download("127.0.0.1", v.port(), 0, err, sizeof err, "%s", request.c_str());
+    ASSERT_NE(c, nullptr) << err;
+    EXPECT_EQ(mg_get_response_info(c)->status_code, 101);
+    mg_close_connection(c);
   }
   WsClient local(v.port(), ("http://localhost:" + port).c_str());  // the page opened as localhost
   ASSERT_TRUE(local.connected()) << local.error();

@@ -465,7 +465,15 @@ Rig kalibr(const std::string& camchain_path, const std::string& imu_path) {
     rig.cameras.push_back(cam);
   }
   if (rig.cameras.empty()) throw ConfigError(fmt::format("{}: no 'cam0' entry: not a Kalibr camchain", camchain_path));
-  if (!imu_path.empty()) rig.imu = load_kalibr_imu(imu_path);
+  rig.r_is_imu = with_imu;
+  if (!imu_path.empty()) {
+    if (!with_imu) {
+      throw ConfigError(fmt::format("{}: a cameras-only calibration (no 'T_cam_imu') with the IMU file {}: the "
+                                    "cameras' pose relative to the IMU is unknown",
+                                    camchain_path, imu_path));
+    }
+    rig.imu = load_kalibr_imu(imu_path);
+  }
   return rig;
 }
 
@@ -621,6 +629,7 @@ Rig rig_yaml(const std::string& path) {
       for (CameraCalibration& cam : rig.cameras) cam.T_RS = imu.T_RS.inverse() * cam.T_RS;
       imu.T_RS = Eigen::Isometry3d::Identity();
     }
+    rig.r_is_imu = true;
     rig.imu = imu;
   }
   double t_d_s = 0.0;

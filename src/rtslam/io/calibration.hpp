@@ -6,10 +6,12 @@
 // Extrinsics are always stored as T_RS: the sensor frame S expressed in the robot frame R (p_R = T_RS * p_S). On
 // EuRoC-style rigs R is the IMU body frame. Conventions are chosen by key name, never guessed:
 //   EuRoC `T_BS`             is T_RS (B = body = IMU on EuRoC);
-//   Kalibr `T_cam_imu`       is T_SR and is inverted on load; Kalibr `T_cn_cnm1` is ignored (T_cam_imu is required);
+//   Kalibr `T_cam_imu`       is T_SR and is inverted on load; without it (a cameras-only calibration) R is cam0 and
+//                            `T_cn_cnm1` (camera n−1 in camera n) chains each camera to the previous one;
 //   Kalibr imu.yaml `T_i_b`  is T_IB (IMU in body), unused when the IMU is R;
 //   rtslam YAML `T_RS`       is T_RS.
-// A rotation that is not orthonormal (|RᵀR − I| > 1e-6 or det < 0) is a ConfigError naming the file and key; a
+// A rotation that is not orthonormal (|RᵀR − I| ≥ 1e-3 or det < 0) is a ConfigError naming the file and key (from
+// 1e-6, a matrix written with few decimals, the nearest rotation is used; a camera's gets a warning); a
 // camera–robot translation above 0.5 m is a warning (logged and kept in Rig::warnings): an inverted or
 // wrong-unit transform is the classic user mistake.
 #include <optional>
@@ -71,6 +73,8 @@ struct Rig {
   std::optional<ImuCalibration> imu;
   TimeNs t_d = 0;                     // time offset: t_imu = t_cam + t_d (Kalibr timeshift_cam_imu)
   std::vector<std::string> warnings;  // suspicious but accepted values (e.g. a camera 0.5 m from the IMU)
+  bool r_is_imu = false;              // R is the IMU: the cameras' T_RS are relative to it (an IMU–camera
+                                      // calibration, or a rig with its IMU); false: R is cam0 or an unknown body
 };
 
 /// EuRoC camera `sensor.yaml` (the `%YAML:1.0` first line is accepted). `name` defaults to the folder name.
@@ -78,8 +82,9 @@ CameraCalibration load_euroc_camera(const std::string& path, std::vector<std::st
 /// EuRoC IMU `sensor.yaml`.
 ImuCalibration load_euroc_imu(const std::string& path);
 
-/// Kalibr camchain.yaml (every camN with T_cam_imu, or without it for camera-only calibrations: identity), plus
-/// optionally Kalibr's imu.yaml (the `imu0:` block of a camchain-imucam result or a flat input imu.yaml).
+/// Kalibr camchain.yaml (every camN with T_cam_imu; or none with it, a cameras-only calibration: R is cam0, the others
+/// chained by T_cn_cnm1), plus optionally Kalibr's imu.yaml (the `imu0:` block of a camchain-imucam result or a flat
+/// input imu.yaml; refused with a cameras-only camchain, whose cameras are not placed relative to the IMU).
 Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path = "");
 ImuCalibration load_kalibr_imu(const std::string& path);
 

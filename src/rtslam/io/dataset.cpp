@@ -168,9 +168,14 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
     ds.rig.imu = all.imu;
     ds.rig.t_d = all.t_d;
     ds.rig.warnings = all.warnings;
+    if (!ds.rig.imu && has_imu && o.use_imu && !all.r_is_imu) {
+      throw ConfigError(fmt::format("{}: no IMU, and its cameras are not given relative to one (no T_cam_imu): an "
+                                    "inertial run needs the camera–IMU extrinsics",
+                                    o.calibration));
+    }
     if (!ds.rig.imu && has_imu && o.use_imu && has_imu_yaml) {
-      // A camera calibration (a Kalibr camchain: R is the IMU already) with the folder's IMU noise and rate; the
-      // IMU's own extrinsic is the camchain's business.
+      // An IMU–camera calibration without the IMU's noise (a Kalibr camchain: R is the IMU) completed by the folder's
+      // IMU noise and rate; the IMU's own extrinsic is the camchain's business.
       ds.rig.imu = load_euroc_imu((imu_dir / "sensor.yaml").string());
       ds.rig.imu->T_RS = Eigen::Isometry3d::Identity();
       ds.rig.warnings.push_back(fmt::format("{} has no IMU: its noise densities and rate are taken from {}",
@@ -360,13 +365,8 @@ Dataset open_images(const fs::path& root, const DatasetOptions& o) {
   BadInputReporter reporter(o.bad_input, scratch);
   std::vector<ImageEntry> images;
   const std::string ts = o.timestamps.empty() ? first_existing(root, {"times.txt", "timestamps.txt"}) : o.timestamps;
-  // The images' own times win over a rate (a rate is for folders without them, docs/configuration.md); both given
-  // explicitly contradict each other.
-  if (!o.timestamps.empty() && o.rate_hz > 0) {
-    throw ConfigError(fmt::format("{}: the timestamps file {} and the rate {:g} Hz both give the images' times: give "
-                                  "one (--timestamps or --rate / slam/rate_hz)",
-                                  root.string(), o.timestamps, o.rate_hz));
-  }
+  // The images' own times win over a rate (a rate is for folders without them, docs/configuration.md; a preset may
+  // carry one, as config/monoslam_davison.yaml does).
   if (!ts.empty() && o.rate_hz > 0) {
     ds.rig.warnings.push_back(fmt::format("{}: the rate {:g} Hz is not used: the images have their times in {}",
                                           root.string(), o.rate_hz, ts));

@@ -41,13 +41,14 @@ void RealtimeSource::stop() {
   std::lock_guard<std::mutex> lock(mutex_);
   stopped_ = true;
   ended_ = true;
-  inner_stats_ = inner_->stats();  // the thread is gone: the inner source is ours, its counts final
+  if (inner_) inner_stats_ = inner_->stats();  // the thread is gone: the inner source is ours, its counts final
   for (const Item& item : queue_) {
     if (!item.superseded && std::holds_alternative<ImageFrame>(item.m)) ++stats_.images_left;
   }
   queue_.clear();
   newest_image_.clear();
   error_ = nullptr;  // an error met after the consumer stopped reading belongs to no measurement it took
+  inner_.reset();    // a live camera is released now (nothing reads the inner source after the join)
 }
 
 void RealtimeSource::acquire() {

@@ -51,6 +51,7 @@ void ViewerOptions::validate() const {
     throw ConfigError(fmt::format("viewer: jpeg_quality = {} must be in [10, 100]", jpeg_quality));
   }
   if (max_image_width < 0) throw ConfigError(fmt::format("viewer: max_image_width = {} must be >= 0", max_image_width));
+  if (max_history < 100) throw ConfigError(fmt::format("viewer: max_history = {} must be >= 100", max_history));
   if (eval::parse_alignment(ground_truth_alignment) == eval::Alignment::None) {
     throw ConfigError("viewer: ground_truth_alignment = none: the ground truth must be drawn in the estimate's "
                       "frame (sim3, se3, posyaw or origin)");
@@ -480,8 +481,14 @@ class Viewer::Impl {
     if (origin == nullptr) return 0;
     const char* host = mg_get_header(conn, "Host");
     const auto [o, o_port] = split_host(origin);
-    const bool name_ok = self->loopback_name(o) || (host != nullptr && o == split_host(host).first);
-    if (name_ok && o_port == std::to_string(self->port_)) return 0;
+    // The page's own address: this port, or the one the Host header names (a tunnel, e.g. ssh -L 9000:...:8080;
+    // no port: 80).
+    const auto [h, h_port] = host != nullptr ? split_host(host) : std::pair<std::string, std::string>{};
+    const auto or80 = [](const std::string& p) { return p.empty() ? std::string("80") : p; };
+    const bool name_ok = self->loopback_name(o) || (host != nullptr && o == h);
+    const bool port_ok =
+        or80(o_port) == std::to_string(self->port_) || (host != nullptr && or80(o_port) == or80(h_port));
+    if (name_ok && port_ok) return 0;
     logger("viz")->warn("viewer: WebSocket from origin '{}' refused (host {})", origin, host ? host : "?");
     return 1;
   }
@@ -529,7 +536,8 @@ class Viewer::Impl {
     return {{"mode", replay_.load() ? "replay" : "live"}, {"pushed", s.pushed},       {"dropped", s.dropped},
             {"processed", s.processed},                      {"frames_sent", s.frames_sent}, {"clients", s.clients},
             {"finished", finished_.load()},                   {"latest_frame", status_latest_frame_},
-            {"latest_landmarks", status_latest_landmarks_},   {"history", status_history_}};
+            {"latest_landmarks", status_latest_landmarks_},   {"history", status_history_},
+            {"history_thinned", status_history_thinned_}};
   }
 
   // ---- the viewer thread ---------------------------------------------------------------------------------------
@@ -605,12 +613,38 @@ class Viewer::Impl {
       history_.push_back(std::move(h));
     }
     swap_history_.clear();
+    // Past the bound (however many records one drain brought), thinned to half of it: a re-send to the pages then
+    // comes once per max_history / 2 frames, not with every frame.
+    if (history_.size() > static_cast<std::size_t>(opt_.max_history)) {
+      while (history_.size() > static_cast<std::size_t>(opt_.max_history) / 2) thin_history();
+    }
     std::lock_guard<std::mutex> slock(status_mu_);
     status_history_ = history_.size();
+    status_history_thinned_ = history_thinned_;
     if (latest_) {
       status_latest_frame_ = latest_->index;
       status_latest_landmarks_ = latest_->landmarks.size();
     }
+  }
+
+  // A live run of hours (about 1 KB a record, 100 MB an hour at 30 Hz): the older half of the record keeps every
+  // other entry, the newer half all; the pages get the thinned record anew (hello), the plots still span the run.
+  void thin_history() {
+    const std::size_t old_half = history_.size() / 2;
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < history_.size(); ++i) {
+      if (i < old_half && i % 2 == 1) continue;
+      if (kept != i) {
+        history_[kept] = std::move(history_[i]);
+        history_json_[kept] = std::move(history_json_[i]);
+      }
+      ++kept;
+    }
+    history_.resize(kept);
+    history_json_.resize(kept);
+    ++history_thinned_;
+    history_rewritten_ = true;
+    fit_history_size_ = 0;
   }
 
   // The ground truth in the estimate's frame: S maps ground-truth points onto the estimate (gt' = S ∘ gt), fitted
@@ -818,6 +852,7 @@ class Viewer::Impl {
   std::vector<HistoryEntry> history_;
   std::vector<std::string> history_json_;
   bool history_rewritten_ = false;
+  long history_thinned_ = 0;  // times the record was thinned (thin_history)
   std::optional<FrameReport> latest_;
   std::optional<Prepared> prepared_;
   std::size_t fit_history_size_ = 0;
@@ -830,6 +865,7 @@ class Viewer::Impl {
   int status_latest_frame_ = -1;
   std::size_t status_latest_landmarks_ = 0;
   std::size_t status_history_ = 0;
+  long status_history_thinned_ = 0;
 
   std::atomic<long> processed_{0};
   std::atomic<long> frames_sent_{0};

@@ -42,6 +42,8 @@ struct ViewerOptions {
   int max_image_width = 1280;           // wider overlays are downscaled before encoding (0: never)
   std::string ground_truth_alignment = "sim3";  // how the GT is drawn in the estimate's frame: sim3|se3|posyaw|origin
   bool lower_priority = true;           // the viewer thread runs at nice +10 (Linux)
+  int max_history = 20000;              // per-frame records kept (a live run: the older half is thinned to every
+                                        // other record whenever there are more, so memory stays bounded), >= 100
   OverlayOptions overlay;
   void validate() const;                // throws ConfigError naming the option, the value and the bound
 };

@@ -311,7 +311,11 @@ TEST(Calibration, KalibrCamerasOnlyChainsEachCameraToThePreviousOne) {
   const Eigen::Vector3d p2 = rig.cameras[2].T_RS.translation();
   EXPECT_LT((p2 - (rig.cameras[1].T_RS * Eigen::Vector3d(0.05, 0, 0))).norm(), 1e-12);
   EXPECT_FALSE(rig.r_is_imu);
-  // Its cameras are not placed relative to any IMU: an IMU file cannot be paired with it.
+  // Its cameras are not placed relative to any IMU: an IMU file (a valid one) cannot be paired with it.
+  write_text(dir / "imu.yaml",
+             "accelerometer_noise_density: 0.01\naccelerometer_random_walk: 0.0002\ngyroscope_noise_density: 0.005\n"
+             "gyroscope_random_walk: 4.0e-06\nrostopic: /imu0\nupdate_rate: 100.0\n");
+  ASSERT_TRUE(load_calibration(dir / "imu.yaml").imu.has_value());
   EXPECT_THROW_WITH(load_kalibr(dir / "camchain.yaml", dir / "imu.yaml"), ConfigError,
                     "a cameras-only calibration (no 'T_cam_imu') with the IMU file");
   // A camera after cam0 with neither key, or T_cam_imu on some cameras only: errors naming the camera.

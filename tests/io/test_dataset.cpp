@@ -148,6 +148,7 @@ TEST(Dataset, EurocImuCalibrationIsNeededOnlyByInertialRunsAndFillsACameraOnlyCa
   with_camchain.calibration = dir / "camchain.yaml";
   const Dataset filled = open_dataset(root, with_camchain);
   ASSERT_TRUE(filled.rig.imu.has_value());
+  EXPECT_TRUE(filled.rig.r_is_imu);
   EXPECT_EQ(filled.rig.imu->gyro_noise_density, 1.7e-4);
   EXPECT_TRUE(filled.rig.imu->T_RS.matrix().isIdentity(0.0));
   EXPECT_DOUBLE_EQ(filled.rig.cameras[0].T_RS.translation().x(), -0.05);  // the camchain's extrinsic
@@ -164,7 +165,7 @@ TEST(Dataset, EurocImuCalibrationIsNeededOnlyByInertialRunsAndFillsACameraOnlyCa
   DatasetOptions cameras_only;
   cameras_only.calibration = dir / "cameras_only.yaml";
   EXPECT_THROW_WITH(open_dataset(root, cameras_only), ConfigError,
-                    "no IMU, and its cameras are not given relative to one (no T_cam_imu)");
+                    "no IMU, and its cameras are not given relative to one (no Kalibr T_cam_imu");
   cameras_only.use_imu = false;  // a monocular run needs no IMU
   EXPECT_EQ(open_dataset(root, cameras_only).rig.cameras.size(), 1u);
   fs::remove(fs::path(root) / "mav0/imu0/sensor.yaml");

@@ -262,7 +262,14 @@ TEST(Viewer, ALongLiveRunKeepsABoundedThinnedHistory) {
   };
   for (int k = 0; k < 1000 && !taken_in(); ++k) std::this_thread::sleep_for(10ms);
   ASSERT_TRUE(taken_in());
-  const json status = json::parse(http_get(v.port(), "/api/status").body);
+  // The record is ingested after the frames are counted: wait until the status shows the last one.
+  json status;
+  for (int k = 0; k < 1000; ++k) {
+    status = json::parse(http_get(v.port(), "/api/status").body);
+    if (status["latest_frame"] == 399) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_EQ(status["latest_frame"], 399);
   EXPECT_LE(status["history"].get<int>(), 100);
   EXPECT_GT(status["history"].get<int>(), 25);
   EXPECT_GT(status["history_thinned"].get<int>(), 0);

@@ -74,7 +74,8 @@ struct Rig {
   TimeNs t_d = 0;                     // time offset: t_imu = t_cam + t_d (Kalibr timeshift_cam_imu)
   std::vector<std::string> warnings;  // suspicious but accepted values (e.g. a camera 0.5 m from the IMU)
   bool r_is_imu = false;              // R is the IMU: the cameras' T_RS are relative to it (an IMU–camera
-                                      // calibration, or a rig with its IMU); false: R is cam0 or an unknown body
+                                      // calibration, a rig with its IMU, a dataset's rig with an IMU); false: R is
+                                      // cam0 or a body frame the file does not relate to an IMU
 };
 
 /// EuRoC camera `sensor.yaml` (the `%YAML:1.0` first line is accepted). `name` defaults to the folder name.

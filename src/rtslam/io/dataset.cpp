@@ -169,8 +169,8 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
     ds.rig.t_d = all.t_d;
     ds.rig.warnings = all.warnings;
     if (!ds.rig.imu && has_imu && o.use_imu && !all.r_is_imu) {
-      throw ConfigError(fmt::format("{}: no IMU, and its cameras are not given relative to one (no T_cam_imu): an "
-                                    "inertial run needs the camera–IMU extrinsics",
+      throw ConfigError(fmt::format("{}: no IMU, and its cameras are not given relative to one (no Kalibr T_cam_imu, "
+                                    "no rig YAML imu block): an inertial run needs the camera–IMU extrinsics",
                                     o.calibration));
     }
     if (!ds.rig.imu && has_imu && o.use_imu && has_imu_yaml) {
@@ -188,6 +188,7 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
       ds.rig.cameras.push_back(all.cameras[static_cast<size_t>(c)]);
     }
   }
+  ds.rig.r_is_imu = ds.rig.imu.has_value();  // every path above that keeps an IMU puts R on it
   // Problems met while parsing the lists (malformed lines) follow the same policy; their counts are merged into
   // the source's stats.
   SourceStats scratch;

@@ -31,6 +31,7 @@ Rig load_rig(const std::string& path, const std::vector<int>& cameras) {
       cam.T_RS = T_BI.inverse() * cam.T_RS;
       rig.cameras.push_back(cam);
     }
+    rig.r_is_imu = rig.imu.has_value();
     return rig;
   }
   if (!fs::exists(path)) throw IoError(fmt::format("{}: calibration not found", path));

@@ -485,10 +485,9 @@ class Viewer::Impl {
     // no port: 80).
     const auto [h, h_port] = host != nullptr ? split_host(host) : std::pair<std::string, std::string>{};
     const auto or80 = [](const std::string& p) { return p.empty() ? std::string("80") : p; };
-    const bool name_ok = self->loopback_name(o) || (host != nullptr && o == h);
-    const bool port_ok =
-        or80(o_port) == std::to_string(self->port_) || (host != nullptr && or80(o_port) == or80(h_port));
-    if (name_ok && port_ok) return 0;
+    const bool this_viewer = self->loopback_name(o) && or80(o_port) == std::to_string(self->port_);
+    const bool same_as_host = host != nullptr && o == h && or80(o_port) == or80(h_port);
+    if (this_viewer || same_as_host) return 0;
     logger("viz")->warn("viewer: WebSocket from origin '{}' refused (host {})", origin, host ? host : "?");
     return 1;
   }

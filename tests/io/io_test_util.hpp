@@ -7,6 +7,7 @@
 #include <fstream>
 #include <string>
 
+#include "rtslam/io/calibration.hpp"
 #include "support/temp_dir.hpp"
 
 namespace rtslam::io::test {
@@ -40,6 +41,30 @@ inline void write_text(const std::string& path, const std::string& text) {
 inline std::string read_text(const std::string& path) {
   std::ifstream in(path);
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+/// The small EuRoC-like IMU of the io tests: 200 Hz, EuRoC-order noise densities and walks.
+inline ImuCalibration small_imu() {
+  ImuCalibration imu;
+  imu.rate_hz = 200;
+  imu.gyro_noise_density = 1.7e-4;
+  imu.gyro_random_walk = 2e-5;
+  imu.accel_noise_density = 2e-3;
+  imu.accel_random_walk = 3e-3;
+  return imu;
+}
+
+/// A 64x48 pinhole camera at 20 Hz (f 50 px, centred), without distortion.
+inline CameraCalibration small_camera(const std::string& name = "cam0") {
+  CameraCalibration cam;
+  cam.name = name;
+  cam.width = 64;
+  cam.height = 48;
+  cam.rate_hz = 20;
+  cam.fx = cam.fy = 50;
+  cam.cx = 32;
+  cam.cy = 24;
+  return cam;
 }
 
 inline std::string euroc_dir() { return RTSLAM_SOURCE_DIR "/../shared/datasets/euroc-v101-static"; }

@@ -40,13 +40,7 @@ std::string make_dataset(const TempDir& dir) {
   cam.distortion = DistortionModel::RadTan;
   cam.distortion_coeffs = {-0.28, 0.07, 2e-4, 2e-5};
   rig.cameras.push_back(cam);
-  ImuCalibration imu;
-  imu.rate_hz = 200;
-  imu.gyro_noise_density = 1.7e-4;
-  imu.gyro_random_walk = 2e-5;
-  imu.accel_noise_density = 2e-3;
-  imu.accel_random_walk = 3e-3;
-  rig.imu = imu;
+  rig.imu = test::small_imu();
   const std::string root = dir / "seq";
   EurocWriter w(root, rig);
   for (int i = 0; i < kImu; ++i) {

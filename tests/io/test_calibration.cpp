@@ -342,12 +342,7 @@ TEST(Calibration, ARigYamlImuOffTheRobotFrameMovesTheFrameOntoIt) {
   cam.cy = 248;
   cam.T_RS = Eigen::Translation3d(0.0, 0.2, 0.0) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX());
   rig.cameras.push_back(cam);
-  ImuCalibration imu;
-  imu.rate_hz = 200;
-  imu.gyro_noise_density = 1.7e-4;
-  imu.gyro_random_walk = 2e-5;
-  imu.accel_noise_density = 2e-3;
-  imu.accel_random_walk = 3e-3;
+  ImuCalibration imu = test::small_imu();
   const Eigen::Isometry3d T_RI(Eigen::Translation3d(0.1, 0.0, 0.0) *
                                Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
   imu.T_RS = T_RI;

@@ -108,22 +108,8 @@ TEST(Dataset, EurocImuCalibrationIsNeededOnlyByInertialRunsAndFillsACameraOnlyCa
   // an IMU (a Kalibr camchain) takes the folder's IMU noise instead of failing with "no IMU".
   TempDir dir;
   Rig rig;
-  CameraCalibration cam;
-  cam.name = "cam0";
-  cam.width = 64;
-  cam.height = 48;
-  cam.rate_hz = 20;
-  cam.fx = cam.fy = 50;
-  cam.cx = 32;
-  cam.cy = 24;
-  rig.cameras.push_back(cam);
-  ImuCalibration imu;
-  imu.rate_hz = 200;
-  imu.gyro_noise_density = 1.7e-4;
-  imu.gyro_random_walk = 2e-5;
-  imu.accel_noise_density = 2e-3;
-  imu.accel_random_walk = 3e-3;
-  rig.imu = imu;
+  rig.cameras.push_back(test::small_camera());
+  rig.imu = test::small_imu();
   const std::string root = dir / "seq";
   {
     EurocWriter w(root, rig);

@@ -32,24 +32,8 @@ constexpr int kImu = 400;  // 2 s at 200 Hz; images on both cameras every 10th s
 /// A small EuRoC folder with two cameras (images interleaved with each other and with the IMU), textured images.
 std::string make_stereo_dataset(const TempDir& dir) {
   Rig rig;
-  for (int c = 0; c < 2; ++c) {
-    CameraCalibration cam;
-    cam.name = fmt::format("cam{}", c);
-    cam.width = 64;
-    cam.height = 48;
-    cam.rate_hz = 20;
-    cam.fx = cam.fy = 50;
-    cam.cx = 32;
-    cam.cy = 24;
-    rig.cameras.push_back(cam);
-  }
-  ImuCalibration imu;
-  imu.rate_hz = 200;
-  imu.gyro_noise_density = 1.7e-4;
-  imu.gyro_random_walk = 2e-5;
-  imu.accel_noise_density = 2e-3;
-  imu.accel_random_walk = 3e-3;
-  rig.imu = imu;
+  for (int c = 0; c < 2; ++c) rig.cameras.push_back(test::small_camera(fmt::format("cam{}", c)));
+  rig.imu = test::small_imu();
   const std::string root = dir / "seq";
   EurocWriter w(root, rig);
   cv::RNG rng(7);

@@ -9,6 +9,7 @@
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
+#include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
 
@@ -161,6 +162,122 @@ TEST(Dataset, EurocImuCalibrationIsNeededOnlyByInertialRunsAndFillsACameraOnlyCa
   EXPECT_FALSE(no_imu.rig.imu.has_value());
   EXPECT_EQ(drain(*no_imu.source, true).images.size(), 2u);
   EXPECT_THROW_WITH(open_dataset(root), IoError, "imu0/sensor.yaml");  // an inertial run needs it
+}
+
+TEST(Dataset, ReadsTumViExportWithItsDsoCalibrationAndMocapGroundTruth) {
+  // TUM-VI's "EuRoC/DSO" export: mav0/ without any sensor.yaml, the Kalibr calibration in dso/ beside it
+  // (camchain.yaml with T_cam_imu and T_cn_cnm1, equidistant distortion; imu_config.yaml, Kalibr's imu.yaml) and the
+  // motion-capture poses of the IMU in mav0/mocap0/data.csv (8 columns: no velocity or biases).
+  TempDir dir;
+  Rig rig;
+  rig.cameras = {test::small_camera("cam0"), test::small_camera("cam1")};
+  rig.imu = test::small_imu();
+  const std::string root = dir / "dataset-room1_512_16";
+  {
+    EurocWriter w(root, rig);
+    for (int i = 0; i < 20; ++i) {
+      ImuSample s;
+      s.t = 1'520'530'308'000'000'000 + i * 5'000'000;
+      s.accel = Eigen::Vector3d(0, 0, 9.81);
+      w.add_imu(s);
+      if (i % 10 == 0) {
+        w.add_image(0, s.t, cv::Mat(48, 64, CV_8UC1, cv::Scalar(i)));
+        w.add_image(1, s.t, cv::Mat(48, 64, CV_8UC1, cv::Scalar(i)));
+      }
+    }
+    w.close();
+  }
+  for (const char* f : {"cam0/sensor.yaml", "cam1/sensor.yaml", "imu0/sensor.yaml"}) {
+    ASSERT_TRUE(fs::remove(fs::path(root) / "mav0" / f)) << f;
+  }
+  // Without its dso/ files the folder has no calibration: the error names the missing file.
+  EXPECT_THROW_WITH(open_dataset(root), IoError, "cam0/sensor.yaml: not found");
+  write_text(root + "/dso/camchain.yaml", R"(cam0:
+  T_cam_imu:
+  - [0.0, -1.0, 0.0, 0.04]
+  - [1.0, 0.0, 0.0, -0.02]
+  - [0.0, 0.0, 1.0, -0.01]
+  - [0.0, 0.0, 0.0, 1.0]
+  cam_overlaps: [1]
+  camera_model: pinhole
+  distortion_coeffs: [0.0034823894022493434, 0.0007150348452162257, -0.0020532361418706202, 0.00020293673591811182]
+  distortion_model: equidistant
+  intrinsics: [50.0, 50.5, 32.0, 24.0]
+  resolution: [64, 48]
+  rostopic: /cam0/image_raw
+cam1:
+  T_cam_imu:
+  - [0.0, -1.0, 0.0, -0.06]
+  - [1.0, 0.0, 0.0, -0.02]
+  - [0.0, 0.0, 1.0, -0.01]
+  - [0.0, 0.0, 0.0, 1.0]
+  T_cn_cnm1:
+  - [1.0, 0.0, 0.0, -0.10]
+  - [0.0, 1.0, 0.0, 0.0]
+  - [0.0, 0.0, 1.0, 0.0]
+  - [0.0, 0.0, 0.0, 1.0]
+  cam_overlaps: [0]
+  camera_model: pinhole
+  distortion_coeffs: [0.0034, 0.0007, -0.0020, 0.0002]
+  distortion_model: equidistant
+  intrinsics: [50.0, 50.5, 32.0, 24.0]
+  resolution: [64, 48]
+  rostopic: /cam1/image_raw
+)");
+  // A monocular run needs no IMU noise; an inertial one names the file it lacks.
+  DatasetOptions mono;
+  mono.use_imu = false;
+  const Dataset visual = open_dataset(root, mono);
+  ASSERT_EQ(visual.rig.cameras.size(), 1u);
+  EXPECT_EQ(visual.rig.cameras[0].distortion, DistortionModel::Equidistant);
+  EXPECT_THROW_WITH(open_dataset(root), IoError, "dso/imu_config.yaml: not found: an inertial run needs the IMU");
+  write_text(root + "/dso/imu_config.yaml", R"(accelerometer_noise_density: 0.0028
+accelerometer_random_walk: 0.00086
+gyroscope_noise_density: 0.00016
+gyroscope_random_walk: 0.000022
+rostopic: /imu0
+update_rate: 200.0
+)");
+  write_text(root + "/mav0/mocap0/data.csv",
+             "#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []\n"
+             "1520530308000000000,0.5,1.5,2.5,1,0,0,0\n"
+             "1520530308050000000,0.6,1.5,2.5,0.7071067811865476,0,0,0.7071067811865476\n");
+  for (const std::string& path : {root, root + "/mav0", root + "/mav0/"}) {
+    SCOPED_TRACE(path);
+    DatasetOptions stereo;
+    stereo.cameras = {0, 1};
+    const Dataset ds = open_dataset(path, stereo);
+    EXPECT_EQ(ds.kind, "euroc");
+    EXPECT_EQ(ds.name, "dataset-room1_512_16");
+    ASSERT_TRUE(ds.rig.imu.has_value());
+    EXPECT_TRUE(ds.rig.r_is_imu);
+    EXPECT_EQ(ds.rig.imu->gyro_noise_density, 0.00016);
+    EXPECT_EQ(ds.rig.imu->accel_random_walk, 0.00086);
+    EXPECT_EQ(ds.rig.imu->rate_hz, 200.0);
+    EXPECT_TRUE(ds.rig.imu->T_RS.matrix().isIdentity(0.0));
+    ASSERT_EQ(ds.rig.cameras.size(), 2u);
+    EXPECT_EQ(ds.rig.cameras[0].fy, 50.5);
+    EXPECT_EQ(ds.rig.cameras[1].distortion_coeffs[3], 0.0002);
+    // T_RS = T_cam_imu⁻¹: the camera centre in the IMU frame is −Rᵀt.
+    EXPECT_TRUE(ds.rig.cameras[0].T_RS.translation().isApprox(Eigen::Vector3d(0.02, 0.04, 0.01), 1e-12));
+    EXPECT_TRUE(ds.rig.cameras[1].T_RS.translation().isApprox(Eigen::Vector3d(0.02, -0.06, 0.01), 1e-12));
+    ASSERT_TRUE(ds.ground_truth.has_value());
+    const std::vector<StampedPose>& gt = ds.ground_truth->poses;
+    ASSERT_EQ(gt.size(), 2u);
+    EXPECT_EQ(gt[1].t, 1'520'530'308'050'000'000);
+    EXPECT_DOUBLE_EQ(gt[1].p_WR.x(), 0.6);
+    EXPECT_NEAR(gt[1].q_WR.toRotationMatrix()(1, 0), 1.0, 1e-12);  // 90° about z
+    EXPECT_FALSE(gt[1].v_WR.has_value());
+    const Drained d = drain(*ds.source);
+    EXPECT_EQ(d.imu.size(), 20u);
+    EXPECT_EQ(d.images.size(), 4u);
+  }
+  // A bag's calibration given as the export's folder reads the same files.
+  const Rig bag_rig = load_rig(root, {1});
+  ASSERT_EQ(bag_rig.cameras.size(), 1u);
+  EXPECT_TRUE(bag_rig.cameras[0].T_RS.translation().isApprox(Eigen::Vector3d(0.02, -0.06, 0.01), 1e-12));
+  ASSERT_TRUE(bag_rig.imu.has_value());
+  EXPECT_THROW_WITH(load_rig(root, {2}), ConfigError, "camchain.yaml: has no camera 2 (it has 2)");
 }
 
 TEST(Dataset, ReadsMonoSlamSequenceAsImageFolder) {

@@ -483,6 +483,60 @@ Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
   return translate_yaml_errors(camchain_path, [&] { return kalibr(camchain_path, imu_path); });
 }
 
+Rig load_euroc_folder_calibration(const std::string& mav0_in, const std::vector<int>& cameras, FolderImu imu) {
+  const fs::path mav0(mav0_in);
+  const fs::path imu_yaml = mav0 / "imu0" / "sensor.yaml";
+  const auto camera_yaml = [&](int c) { return mav0 / fmt::format("cam{}", c) / "sensor.yaml"; };
+  const fs::path dso = (mav0.filename() == "mav0" ? mav0.parent_path() : mav0) / "dso";
+  const bool euroc_cameras =
+      std::any_of(cameras.begin(), cameras.end(), [&](int c) { return fs::is_regular_file(camera_yaml(c)); });
+  if (!cameras.empty() && !euroc_cameras && fs::is_regular_file(dso / "camchain.yaml")) {
+    // TUM-VI: the cameras relative to the IMU (T_cam_imu) and the IMU's noise in Kalibr's files.
+    const std::string camchain = (dso / "camchain.yaml").string();
+    const fs::path imu_config = dso / "imu_config.yaml";
+    std::string imu_path;
+    if (imu != FolderImu::Skip && fs::is_regular_file(imu_config)) {
+      imu_path = imu_config.string();
+    } else if (imu == FolderImu::Required) {
+      throw IoError(fmt::format("{}: not found: an inertial run needs the IMU's noise (the calibration of {} is "
+                                "TUM-VI's {})",
+                                imu_config.string(), mav0.string(), camchain));
+    }
+    const Rig all = load_kalibr(camchain, imu_path);
+    logger("io")->info("{}: no sensor.yaml files; calibration from TUM-VI's {}{}", mav0.string(), camchain,
+                       imu_path.empty() ? std::string() : " and " + imu_path);
+    Rig rig = all;
+    rig.cameras.clear();
+    for (const int c : cameras) {
+      if (c < 0 || static_cast<size_t>(c) >= all.cameras.size()) {
+        throw ConfigError(fmt::format("{}: has no camera {} (it has {})", camchain, c, all.cameras.size()));
+      }
+      rig.cameras.push_back(all.cameras[static_cast<size_t>(c)]);
+    }
+    return rig;
+  }
+  for (const int c : cameras) {
+    if (!fs::is_regular_file(camera_yaml(c))) {
+      throw IoError(fmt::format("{}: not found (the calibration of camera {}; a TUM-VI export has {} instead)",
+                                camera_yaml(c).string(), c, (dso / "camchain.yaml").string()));
+    }
+  }
+  Rig rig;
+  Eigen::Isometry3d T_BI = Eigen::Isometry3d::Identity();
+  if (imu == FolderImu::Required || (imu == FolderImu::IfPresent && fs::is_regular_file(imu_yaml))) {
+    rig.imu = load_euroc_imu(imu_yaml.string());
+    T_BI = rig.imu->T_RS;
+    rig.imu->T_RS = Eigen::Isometry3d::Identity();
+  }
+  for (const int c : cameras) {
+    CameraCalibration cam = load_euroc_camera(camera_yaml(c).string(), &rig.warnings);
+    cam.T_RS = T_BI.inverse() * cam.T_RS;
+    rig.cameras.push_back(cam);
+  }
+  rig.r_is_imu = rig.imu.has_value();
+  return rig;
+}
+
 CameraCalibration load_monoslam_camera(const std::string& path) {
   if (!fs::is_regular_file(path)) throw IoError(fmt::format("{}: file not found", path));
   std::ifstream in(path);

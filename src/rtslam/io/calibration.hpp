@@ -101,6 +101,17 @@ CameraCalibration load_monoslam_camera(const std::string& path);
 /// rate are not in the file: width, height and rate_hz are 0 (the KITTI reader takes them from the images).
 CameraCalibration load_kitti_calib(const std::string& path, int camera);
 
+/// What load_euroc_folder_calibration does with the IMU's calibration: leaves it out, reads it when its file exists,
+/// or requires it (an inertial run).
+enum class FolderImu { Skip, IfPresent, Required };
+
+/// The calibration of an EuRoC-format folder `mav0` (the one holding camN/ and imu0/) for the cameras `cameras`:
+/// EuRoC's camN/sensor.yaml and imu0/sensor.yaml (R = the IMU: T_RS(cam) = T_BI⁻¹ T_BC with EuRoC's body frame B);
+/// or, when none of those camera files exists and a `dso/camchain.yaml` lies beside `mav0` (TUM-VI's EuRoC-format
+/// export has no sensor.yaml), that Kalibr camchain with `dso/imu_config.yaml` (Kalibr's imu.yaml) for the IMU.
+/// Throws IoError (a file missing, naming it) or ConfigError (a camera the calibration does not have, bad values).
+Rig load_euroc_folder_calibration(const std::string& mav0, const std::vector<int>& cameras, FolderImu imu);
+
 /// rtslam's own rig YAML (strict: unknown keys are errors). Format in docs/datasets.md.
 Rig load_rig_yaml(const std::string& path);
 /// Writes a rig in rtslam's own YAML format (read back exactly by load_rig_yaml).

@@ -144,25 +144,18 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
   ds.kind = "euroc";
   ds.path = root_in.string();
   ds.name = (root.filename() == "mav0" ? root.parent_path() : root).filename().string();
-  // Calibration: our robot frame R is the IMU; T_RS(cam) = T_BI^-1 T_BC with EuRoC's body frame B.
-  Eigen::Isometry3d T_BI = Eigen::Isometry3d::Identity();
   const fs::path imu_dir = root / "imu0";
   const bool has_imu = fs::is_regular_file(imu_dir / "data.csv");
   const bool has_imu_yaml = fs::is_regular_file(imu_dir / "sensor.yaml");
+  for (int c : o.cameras) {
+    const fs::path cam_dir = root / fmt::format("cam{}", c);
+    if (!fs::is_directory(cam_dir)) throw IoError(fmt::format("{}: camera folder not found", cam_dir.string()));
+  }
   if (o.calibration.empty()) {
-    // A run without the IMU does not need its sensor.yaml (TUM-VI's export has none): R is then the body frame.
-    if (has_imu && (o.use_imu || has_imu_yaml)) {
-      ds.rig.imu = load_euroc_imu((imu_dir / "sensor.yaml").string());
-      T_BI = ds.rig.imu->T_RS;
-      ds.rig.imu->T_RS = Eigen::Isometry3d::Identity();
-    }
-    for (int c : o.cameras) {
-      const fs::path cam_dir = root / fmt::format("cam{}", c);
-      if (!fs::is_directory(cam_dir)) throw IoError(fmt::format("{}: camera folder not found", cam_dir.string()));
-      CameraCalibration cam = load_euroc_camera((cam_dir / "sensor.yaml").string(), &ds.rig.warnings);
-      cam.T_RS = T_BI.inverse() * cam.T_RS;
-      ds.rig.cameras.push_back(cam);
-    }
+    // The folder's own calibration, R the IMU (EuRoC's sensor.yaml files, or TUM-VI's dso/ Kalibr files). A run
+    // without the IMU does not need its calibration: R is then the body frame (or the camchain's IMU).
+    const FolderImu imu = !has_imu ? FolderImu::Skip : o.use_imu ? FolderImu::Required : FolderImu::IfPresent;
+    ds.rig = load_euroc_folder_calibration(root.string(), o.cameras, imu);
   } else {
     const Rig all = load_calibration(o.calibration);
     ds.rig.imu = all.imu;
@@ -206,8 +199,8 @@ Dataset open_euroc(const fs::path& root_in, const DatasetOptions& o) {
                                              std::move(images), sizes_of(ds.rig), checks);
   src->add_parse_problems(scratch);
   ds.source = std::move(src);
-  const fs::path gt = root / "state_groundtruth_estimate0" / "data.csv";
-  if (fs::is_regular_file(gt)) ds.ground_truth = read_ground_truth(gt, TrajectoryFormat::EurocCsv, o, ds.rig);
+  const std::string gt = euroc_ground_truth_file(root.string());
+  if (!gt.empty()) ds.ground_truth = read_ground_truth(gt, TrajectoryFormat::EurocCsv, o, ds.rig);
   return ds;
 }
 
@@ -510,6 +503,14 @@ std::vector<std::string> list_images(const std::string& folder) {
   std::sort(names.begin(), names.end(), natural_less);
   for (auto& n : names) n = (fs::path(folder) / n).string();
   return names;
+}
+
+std::string euroc_ground_truth_file(const std::string& mav0) {
+  for (const char* name : {"state_groundtruth_estimate0", "mocap0"}) {
+    const fs::path file = fs::path(mav0) / name / "data.csv";
+    if (fs::is_regular_file(file)) return file.string();
+  }
+  return {};
 }
 
 std::string detect_dataset_kind(const std::string& path) {

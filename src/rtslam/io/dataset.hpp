@@ -2,7 +2,8 @@
 // Opening a dataset: "KIND:PATH" or "PATH" (kind auto-detected) -> a measurement Source, the Rig calibration,
 // optional ground truth, and a name. Layouts (details in docs/datasets.md):
 //   euroc   EuRoC / ASL folder (PATH or PATH/mav0 with cam*/data.csv, imu0/data.csv, sensor.yaml files,
-//           optional state_groundtruth_estimate0/data.csv).
+//           optional state_groundtruth_estimate0/data.csv); also TUM-VI's export (no sensor.yaml: dso/camchain.yaml
+//           and dso/imu_config.yaml beside mav0/, mocap0/data.csv as ground truth).
 //   tum     TUM RGB-D / mono: rgb.txt (`t path`), optional groundtruth.txt; calibration YAML from the option or
 //           calibration.yaml / camera.yaml / sensor.yaml / camchain.yaml in the folder.
 //   kitti   KITTI odometry sequences/NN: image_0/*.png, times.txt, calib.txt (P0), optional ../../poses/NN.txt.
@@ -64,6 +65,10 @@ struct Dataset {
 
 /// Detects the kind of a path ("euroc", "tum", "kitti", "images", "video", "rosbag"); throws IoError when it cannot.
 std::string detect_dataset_kind(const std::string& path);
+
+/// The ground truth of an EuRoC-format folder `mav0`: EuRoC's state_groundtruth_estimate0/data.csv, else TUM-VI's
+/// mocap0/data.csv (`t[ns], p, q(w x y z)` of the IMU); empty when it has neither.
+std::string euroc_ground_truth_file(const std::string& mav0);
 
 /// Opens "KIND:PATH" or "PATH". Throws IoError/ConfigError/DataError naming the file and the problem.
 Dataset open_dataset(const std::string& spec, const DatasetOptions& options = {});

@@ -11,28 +11,9 @@ namespace rtslam::io {
 namespace fs = std::filesystem;
 
 Rig load_rig(const std::string& path, const std::vector<int>& cameras) {
-  if (fs::is_directory(path)) {
-    // EuRoC / ASL folder: our robot frame R is the IMU, T_RS(cam) = T_BI⁻¹ T_BC with EuRoC's body frame B.
+  if (fs::is_directory(path)) {  // an EuRoC / ASL folder (or TUM-VI's export): R is the IMU
     const fs::path root = fs::is_directory(fs::path(path) / "mav0") ? fs::path(path) / "mav0" : fs::path(path);
-    Rig rig;
-    Eigen::Isometry3d T_BI = Eigen::Isometry3d::Identity();
-    const fs::path imu_yaml = root / "imu0" / "sensor.yaml";
-    if (fs::is_regular_file(imu_yaml)) {
-      rig.imu = load_euroc_imu(imu_yaml.string());
-      T_BI = rig.imu->T_RS;
-      rig.imu->T_RS = Eigen::Isometry3d::Identity();
-    }
-    for (int c : cameras) {
-      const fs::path cam_yaml = root / fmt::format("cam{}", c) / "sensor.yaml";
-      if (!fs::is_regular_file(cam_yaml)) {
-        throw IoError(fmt::format("{}: calibration folder without cam{}/sensor.yaml", root.string(), c));
-      }
-      CameraCalibration cam = load_euroc_camera(cam_yaml.string(), &rig.warnings);
-      cam.T_RS = T_BI.inverse() * cam.T_RS;
-      rig.cameras.push_back(cam);
-    }
-    rig.r_is_imu = rig.imu.has_value();
-    return rig;
+    return load_euroc_folder_calibration(root.string(), cameras, FolderImu::IfPresent);
   }
   if (!fs::exists(path)) throw IoError(fmt::format("{}: calibration not found", path));
   const Rig all = load_calibration(path);

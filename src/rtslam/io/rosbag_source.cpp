@@ -430,8 +430,8 @@ Dataset open_rosbag(const std::string& path, const DatasetOptions& o) {
   if (fs::is_directory(calibration)) {
     const fs::path root =
         fs::is_directory(fs::path(calibration) / "mav0") ? fs::path(calibration) / "mav0" : fs::path(calibration);
-    const fs::path gt = root / "state_groundtruth_estimate0" / "data.csv";
-    if (fs::is_regular_file(gt)) ds.ground_truth = read_trajectory(gt.string(), TrajectoryFormat::EurocCsv);
+    const std::string gt = euroc_ground_truth_file(root.string());
+    if (!gt.empty()) ds.ground_truth = read_trajectory(gt, TrajectoryFormat::EurocCsv);
   }
   return ds;
 }

@@ -44,7 +44,8 @@ bool rosbag_supported();
 Dataset open_rosbag(const std::string& path, const DatasetOptions& options = {});
 
 /// The rig of a calibration path: an EuRoC/ASL folder (PATH or PATH/mav0: camN/sensor.yaml for each N of
-/// `cameras`, imu0/sensor.yaml when present; T_RS = T_BI⁻¹ T_BS with the IMU as R) or a calibration file
+/// `cameras`, imu0/sensor.yaml when present; T_RS = T_BI⁻¹ T_BS with the IMU as R; TUM-VI's export: its dso/
+/// Kalibr files, load_euroc_folder_calibration) or a calibration file
 /// (load_calibration; its cameras `cameras` are kept, in that order). Throws ConfigError/IoError naming the path.
 Rig load_rig(const std::string& path, const std::vector<int>& cameras = {0});
 

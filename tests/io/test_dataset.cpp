@@ -187,11 +187,13 @@ TEST(Dataset, ReadsTumViExportWithItsDsoCalibrationAndMocapGroundTruth) {
     }
     w.close();
   }
-  for (const char* f : {"cam0/sensor.yaml", "cam1/sensor.yaml", "imu0/sensor.yaml"}) {
-    ASSERT_TRUE(fs::remove(fs::path(root) / "mav0" / f)) << f;
-  }
-  // Without its dso/ files the folder has no calibration: the error names the missing file.
-  EXPECT_THROW_WITH(open_dataset(root), IoError, "cam0/sensor.yaml: not found");
+  write_text(root + "/dso/imu_config.yaml", R"(accelerometer_noise_density: 0.0028
+accelerometer_random_walk: 0.00086
+gyroscope_noise_density: 0.00016
+gyroscope_random_walk: 0.000022
+rostopic: /imu0
+update_rate: 200.0
+)");
   write_text(root + "/dso/camchain.yaml", R"(cam0:
   T_cam_imu:
   - [0.0, -1.0, 0.0, 0.04]
@@ -224,20 +226,13 @@ cam1:
   resolution: [64, 48]
   rostopic: /cam1/image_raw
 )");
-  // A monocular run needs no IMU noise; an inertial one names the file it lacks.
-  DatasetOptions mono;
-  mono.use_imu = false;
-  const Dataset visual = open_dataset(root, mono);
-  ASSERT_EQ(visual.rig.cameras.size(), 1u);
-  EXPECT_EQ(visual.rig.cameras[0].distortion, DistortionModel::Equidistant);
-  EXPECT_THROW_WITH(open_dataset(root), IoError, "dso/imu_config.yaml: not found: an inertial run needs the IMU");
-  write_text(root + "/dso/imu_config.yaml", R"(accelerometer_noise_density: 0.0028
-accelerometer_random_walk: 0.00086
-gyroscope_noise_density: 0.00016
-gyroscope_random_walk: 0.000022
-rostopic: /imu0
-update_rate: 200.0
-)");
+  // EuRoC's sensor.yaml files, where they exist, win over dso/.
+  const Dataset euroc = open_dataset(root);
+  EXPECT_EQ(euroc.rig.imu->gyro_noise_density, 1.7e-4);
+  EXPECT_EQ(euroc.rig.cameras[0].distortion, DistortionModel::None);
+  for (const char* f : {"cam0/sensor.yaml", "cam1/sensor.yaml", "imu0/sensor.yaml"}) {
+    ASSERT_TRUE(fs::remove(fs::path(root) / "mav0" / f)) << f;
+  }
   write_text(root + "/mav0/mocap0/data.csv",
              "#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []\n"
              "1520530308000000000,0.5,1.5,2.5,1,0,0,0\n"
@@ -250,11 +245,9 @@ update_rate: 200.0
     EXPECT_EQ(ds.kind, "euroc");
     EXPECT_EQ(ds.name, "dataset-room1_512_16");
     ASSERT_TRUE(ds.rig.imu.has_value());
-    EXPECT_TRUE(ds.rig.r_is_imu);
     EXPECT_EQ(ds.rig.imu->gyro_noise_density, 0.00016);
     EXPECT_EQ(ds.rig.imu->accel_random_walk, 0.00086);
     EXPECT_EQ(ds.rig.imu->rate_hz, 200.0);
-    EXPECT_TRUE(ds.rig.imu->T_RS.matrix().isIdentity(0.0));
     ASSERT_EQ(ds.rig.cameras.size(), 2u);
     EXPECT_EQ(ds.rig.cameras[0].fy, 50.5);
     EXPECT_EQ(ds.rig.cameras[1].distortion_coeffs[3], 0.0002);
@@ -272,12 +265,28 @@ update_rate: 200.0
     EXPECT_EQ(d.imu.size(), 20u);
     EXPECT_EQ(d.images.size(), 4u);
   }
-  // A bag's calibration given as the export's folder reads the same files.
-  const Rig bag_rig = load_rig(root, {1});
-  ASSERT_EQ(bag_rig.cameras.size(), 1u);
-  EXPECT_TRUE(bag_rig.cameras[0].T_RS.translation().isApprox(Eigen::Vector3d(0.02, -0.06, 0.01), 1e-12));
-  ASSERT_TRUE(bag_rig.imu.has_value());
+  // A bag's calibration given as the export's folder, its mav0/ or its dso/ reads the same files.
+  for (const std::string& path : {root, root + "/mav0/", root + "/dso"}) {
+    SCOPED_TRACE(path);
+    const Rig bag_rig = load_rig(path, {1});
+    ASSERT_EQ(bag_rig.cameras.size(), 1u);
+    EXPECT_TRUE(bag_rig.cameras[0].T_RS.translation().isApprox(Eigen::Vector3d(0.02, -0.06, 0.01), 1e-12));
+    ASSERT_TRUE(bag_rig.imu.has_value());
+    EXPECT_EQ(bag_rig.imu->accel_noise_density, 0.0028);
+  }
   EXPECT_THROW_WITH(load_rig(root, {2}), ConfigError, "camchain.yaml: has no camera 2 (it has 2)");
+  // A monocular run needs no IMU noise; an inertial one names the file it lacks.
+  fs::remove(fs::path(root) / "dso/imu_config.yaml");
+  DatasetOptions mono;
+  mono.use_imu = false;
+  const Dataset visual = open_dataset(root, mono);
+  ASSERT_EQ(visual.rig.cameras.size(), 1u);
+  EXPECT_FALSE(visual.rig.imu.has_value());
+  EXPECT_EQ(visual.rig.cameras[0].distortion, DistortionModel::Equidistant);
+  EXPECT_THROW_WITH(open_dataset(root), IoError, "dso/imu_config.yaml: file not found: an inertial run needs the IMU");
+  // Without its dso/ files the folder has no calibration: the error names the missing file.
+  fs::remove_all(fs::path(root) / "dso");
+  EXPECT_THROW_WITH(open_dataset(root), IoError, "cam0/sensor.yaml: file not found");
 }
 
 TEST(Dataset, ReadsMonoSlamSequenceAsImageFolder) {

@@ -484,10 +484,14 @@ Rig load_kalibr(const std::string& camchain_path, const std::string& imu_path) {
 }
 
 Rig load_euroc_folder_calibration(const std::string& mav0_in, const std::vector<int>& cameras, FolderImu imu) {
-  const fs::path mav0(mav0_in);
+  fs::path mav0 = fs::path(mav0_in).lexically_normal();
+  if (!mav0.has_filename()) mav0 = mav0.parent_path();  // "…/mav0/"
   const fs::path imu_yaml = mav0 / "imu0" / "sensor.yaml";
   const auto camera_yaml = [&](int c) { return mav0 / fmt::format("cam{}", c) / "sensor.yaml"; };
-  const fs::path dso = (mav0.filename() == "mav0" ? mav0.parent_path() : mav0) / "dso";
+  // The Kalibr files' folder: beside mav0/, inside the folder given, or the folder given (a bag's --calibration).
+  const fs::path dso = mav0.filename() == "dso"    ? mav0
+                       : mav0.filename() == "mav0" ? mav0.parent_path() / "dso"
+                                                   : mav0 / "dso";
   const bool euroc_cameras =
       std::any_of(cameras.begin(), cameras.end(), [&](int c) { return fs::is_regular_file(camera_yaml(c)); });
   if (!cameras.empty() && !euroc_cameras && fs::is_regular_file(dso / "camchain.yaml")) {
@@ -498,8 +502,8 @@ Rig load_euroc_folder_calibration(const std::string& mav0_in, const std::vector<
     if (imu != FolderImu::Skip && fs::is_regular_file(imu_config)) {
       imu_path = imu_config.string();
     } else if (imu == FolderImu::Required) {
-      throw IoError(fmt::format("{}: not found: an inertial run needs the IMU's noise (the calibration of {} is "
-                                "TUM-VI's {})",
+      throw IoError(fmt::format("{}: file not found: an inertial run needs the IMU's noise (the calibration of {} "
+                                "is TUM-VI's {})",
                                 imu_config.string(), mav0.string(), camchain));
     }
     const Rig all = load_kalibr(camchain, imu_path);
@@ -517,7 +521,7 @@ Rig load_euroc_folder_calibration(const std::string& mav0_in, const std::vector<
   }
   for (const int c : cameras) {
     if (!fs::is_regular_file(camera_yaml(c))) {
-      throw IoError(fmt::format("{}: not found (the calibration of camera {}; a TUM-VI export has {} instead)",
+      throw IoError(fmt::format("{}: file not found (camera {}'s calibration; a TUM-VI export has {} instead)",
                                 camera_yaml(c).string(), c, (dso / "camchain.yaml").string()));
     }
   }

@@ -109,6 +109,7 @@ enum class FolderImu { Skip, IfPresent, Required };
 /// EuRoC's camN/sensor.yaml and imu0/sensor.yaml (R = the IMU: T_RS(cam) = T_BI⁻¹ T_BC with EuRoC's body frame B);
 /// or, when none of those camera files exists and a `dso/camchain.yaml` lies beside `mav0` (TUM-VI's EuRoC-format
 /// export has no sensor.yaml), that Kalibr camchain with `dso/imu_config.yaml` (Kalibr's imu.yaml) for the IMU.
+/// `mav0` may also be the folder holding mav0/ and dso/, or the dso/ folder itself.
 /// Throws IoError (a file missing, naming it) or ConfigError (a camera the calibration does not have, bad values).
 Rig load_euroc_folder_calibration(const std::string& mav0, const std::vector<int>& cameras, FolderImu imu);
 

@@ -55,13 +55,20 @@ void run_eval(const EvalArgs& a) {
   const bool has_cov = std::any_of(est_sync.poses.begin(), est_sync.poses.end(),
                                    [](const StampedPose& p) { return p.cov.has_value(); });
   if (has_cov) {
-    const eval::NeesSeries s = eval::compute_nees(est_sync, gt_sync);
-    const eval::NeesSummary ns = eval::summarize_nees(s);
-    std::cout << fmt::format("NEES (6-DoF pose, first-pose aligned): mean {:.3f} over {} poses, {:.1f} % inside the "
-                             "99 % band [{:.3f}, {:.2f}]\n",
-                             ns.mean, ns.n, 100.0 * ns.fraction_in_band, ns.band_lo, ns.band_hi);
-    j["nees"] = eval::to_json(ns);
-    if (a.series) j["nees"]["values"] = s.nees;
+    // Covariances that give no NEES (none positive definite) leave it out, as `rtslam report` does: the accuracy above
+    // stands, and the JSON is still written.
+    try {
+      const eval::NeesSeries s = eval::compute_nees(est_sync, gt_sync);
+      const eval::NeesSummary ns = eval::summarize_nees(s);
+      std::cout << fmt::format("NEES (6-DoF pose, first-pose aligned): mean {:.3f} over {} poses, {:.1f} % inside "
+                               "the 99 % band [{:.3f}, {:.2f}]\n",
+                               ns.mean, ns.n, 100.0 * ns.fraction_in_band, ns.band_lo, ns.band_hi);
+      j["nees"] = eval::to_json(ns);
+      if (a.series) j["nees"]["values"] = s.nees;
+    } catch (const DataError& e) {
+      std::cout << "NEES: none (" << e.what() << ")\n";
+      j["nees"] = {{"note", e.what()}};
+    }
   }
   std::string out = a.json_out;
   if (out.empty()) {

@@ -104,6 +104,44 @@ TEST(Batch, RunsInParallelResumesAndAggregates) {
   fs::remove_all(dir);
 }
 
+TEST(Batch, AStoredEvaluationMadeWithOtherOptionsIsRedoneAndThePlanIsWrittenWhenAggregating) {
+  // A batch aggregated again with another alignment used to keep each run's eval.json of the first (its table then
+  // said "sim3" over SE(3)/origin numbers); an aggregation without a run (--aggregate-only after --emit-slurm) wrote no
+  // batch_plan.json, so no report could be made; a metric no run has was a 0 in batch.csv.
+  const fs::path dir = temp_dir("options");
+  BatchOptions o = fake_options(dir, 2);
+  ASSERT_EQ(run_batch(o, {}).failed, 0u);
+  const auto origin = aggregate_batch(o);
+  const fs::path eval_json = dir / "runs/sim/default/seed_0001/eval.json";
+  EXPECT_EQ(read_json(eval_json)["options"]["align"], "origin");
+  fs::remove(dir / "batch_plan.json");
+  o.eval.align = Alignment::Sim3;
+  o.eval.rpe.delta = 1000.0;  // metres: longer than the runs, so no run has an RPE
+  o.eval.rpe.unit = DeltaUnit::Meters;
+  const auto sim3 = aggregate_batch(o);
+  ASSERT_EQ(sim3.size(), 1u);
+  EXPECT_EQ(sim3[0].evaluated, 2u);
+  EXPECT_EQ(read_json(eval_json)["options"]["align"], "sim3");
+  EXPECT_LT(sim3[0].ate_trans_rmse.mean, origin[0].ate_trans_rmse.mean);  // Sim(3) fits best; origin fits one pose
+  EXPECT_EQ(sim3[0].rpe_trans_rmse.n, 0u);
+  const BatchOptions back = load_batch_plan(dir.string());
+  EXPECT_EQ(back.eval.align, Alignment::Sim3);
+  EXPECT_EQ(back.eval.rpe.unit, DeltaUnit::Meters);
+  std::ifstream csv(dir / "batch.csv");
+  std::string header, row;
+  std::getline(csv, header);
+  std::getline(csv, row);
+  const auto field = [](const std::string& line, int k) {
+    std::size_t a = 0;
+    for (int i = 0; i < k; ++i) a = line.find(',', a) + 1;
+    return line.substr(a, line.find(',', a) - a);
+  };
+  ASSERT_EQ(field(header, 10), "rpe_trans_rmse_mean_m");
+  EXPECT_EQ(field(row, 10), "") << row;
+  EXPECT_NE(field(row, 5), "") << row;
+  fs::remove_all(dir);
+}
+
 TEST(Batch, CommandListAndSlurmScriptRunOneIndependentProcessPerLine) {
   const fs::path dir = temp_dir("cluster");
   const BatchOptions o = fake_options(dir, 3);

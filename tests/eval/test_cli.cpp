@@ -54,6 +54,28 @@ TEST(CliEval, PrintsTableAndWritesJsonEqualToTheLibrary) {
   fs::remove_all(dir);
 }
 
+TEST(CliEval, CovariancesWithoutANeesStillGiveTheAccuracyAndItsJson) {
+  // Covariances none of which is positive definite (all zero) give no NEES: a note, exit 0, the JSON written (the
+  // ATE/RPE table was printed and then the command failed, without JSON).
+  const fs::path dir = temp_dir("eval_zero_cov");
+  test::write_fake_run(dir.string(), {.seed = 3, .duration_s = 4.0});
+  Trajectory est = io::read_trajectory((dir / "trajectory.csv").string());
+  for (StampedPose& p : est.poses) p.cov = Eigen::Matrix<double, 6, 6>::Zero();
+  io::write_trajectory_csv((dir / "zero_cov.csv").string(), est);
+  const fs::path json = dir / "out.json";
+  const int code = run_process({RTSLAM_CLI, "eval", (dir / "zero_cov.csv").string(),
+                                (dir / "groundtruth.txt").string(), "--json", json.string()},
+                               (dir / "eval.log").string());
+  std::ifstream log(dir / "eval.log");
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("NEES: none ("), std::string::npos) << text;
+  const auto j = read_json(json);
+  EXPECT_GT(j["ate"]["trans_m"]["rmse"].get<double>(), 0.0);
+  EXPECT_TRUE(j["nees"].contains("note"));
+  fs::remove_all(dir);
+}
+
 TEST(CliBatch, AFailedRunMakesTheBatchExitNonZeroAfterItsAggregates) {
   // Review 27 Nov: `rtslam batch` printed "1 failed" and exited 0.
   const fs::path dir = temp_dir("batch_fail");

@@ -161,7 +161,8 @@ Sim3 compute_alignment(const Trajectory& est, const Trajectory& gt, Alignment me
       const auto& e = est.poses.front();
       const auto& g = gt.poses.front();
       Sim3 S;
-      S.R = g.q_WR.toRotationMatrix() * e.q_WR.toRotationMatrix().transpose();
+      // Normalized: files hold quaternions rounded to a few decimals (the readers accept norms within 1 %).
+      S.R = g.q_WR.normalized().toRotationMatrix() * e.q_WR.normalized().toRotationMatrix().transpose();
       S.t = g.p_WR - S.R * e.p_WR;
       return S;
     }

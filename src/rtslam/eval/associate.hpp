@@ -1,6 +1,6 @@
 #pragma once
 // Association of an estimate with its ground truth by timestamp, with evo's rule (sync.associate_trajectories):
-// for every pose of the SHORTER trajectory (the ground truth on a tie), the pose of the longer one with the nearest
+// for every pose of the SHORTER trajectory (the estimate on a tie), the pose of the longer one with the nearest
 // timestamp (the first on a tie) is taken if |Δt| <= max_diff; the estimate's stamps are shifted by offset first.
 // Trajectories without timestamps (KITTI) are associated by index and must have the same length.
 // With `interpolate`, the ground truth is instead evaluated AT each estimate's timestamp: position linearly,

@@ -155,6 +155,19 @@ nlohmann::json plan_json(const BatchOptions& o, const std::vector<RunSpec>& runs
   return j;
 }
 
+// Whether a run's eval.json exists and was made with these options (an earlier batch with another alignment or RPE
+// delta, or `rtslam report RUN_DIR` with its defaults, leaves one made with others: it is evaluated again).
+bool eval_current(const RunSpec& run, const EvalOptions& eval) {
+  const fs::path path = fs::path(run.dir) / "eval.json";
+  if (!fs::exists(path)) return false;
+  try {
+    const nlohmann::json j = read_json(path.string());
+    return j.contains("options") && j["options"] == to_json(eval);
+  } catch (const Error&) {
+    return false;  // unreadable: written again
+  }
+}
+
 // Evaluates a finished run into its eval.json; false (and a note in the log) if the evaluation fails.
 bool evaluate_into_json(const RunSpec& run, const EvalOptions& eval) {
   try {
@@ -209,11 +222,18 @@ void write_slurm_script(const BatchOptions& o, const std::string& path, const st
   fs::permissions(path, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
 }
 
+std::string write_batch_plan(const BatchOptions& o) {
+  const fs::path root = absolute(o.out_dir);
+  fs::create_directories(root);
+  const std::string path = (root / "batch_plan.json").string();
+  write_text(path, plan_json(o, plan_batch(o)).dump(1) + "\n");
+  return path;
+}
+
 BatchOutcome run_batch(const BatchOptions& o, const std::function<void(const BatchProgress&)>& on_progress) {
   const auto runs = plan_batch(o);
   const fs::path root = absolute(o.out_dir);
-  fs::create_directories(root);
-  write_text((root / "batch_plan.json").string(), plan_json(o, runs).dump(1) + "\n");
+  write_batch_plan(o);
   write_command_list(o, (root / "commands.txt").string());
 
   BatchOutcome outcome;
@@ -230,7 +250,7 @@ BatchOutcome run_batch(const BatchOptions& o, const std::function<void(const Bat
   for (std::size_t i = 0; i < runs.size(); ++i) {
     if (run_finished(runs[i])) {
       ++progress.skipped;
-      if (!fs::exists(fs::path(runs[i].dir) / "eval.json")) evaluate_into_json(runs[i], o.eval);
+      if (!eval_current(runs[i], o.eval)) evaluate_into_json(runs[i], o.eval);
     } else {
       todo.push_back(i);
     }
@@ -315,6 +335,7 @@ std::string fmt_num(double v, int prec = 4) {
 std::vector<GroupSummary> aggregate_batch(const BatchOptions& o) {
   const auto runs = plan_batch(o);
   const fs::path root = absolute(o.out_dir);
+  write_batch_plan(o);  // what was aggregated, for a report later (also after --emit-slurm and --aggregate-only)
   std::map<std::pair<std::string, std::string>, std::size_t> index;
   std::vector<GroupSummary> groups;
   struct Acc {
@@ -343,7 +364,7 @@ std::vector<GroupSummary> aggregate_batch(const BatchOptions& o) {
       continue;
     }
     const fs::path eval_path = fs::path(r.dir) / "eval.json";
-    if (!fs::exists(eval_path) && !evaluate_into_json(r, o.eval)) {
+    if (!eval_current(r, o.eval) && !evaluate_into_json(r, o.eval)) {
       ++g.failed;
       rj["status"] = "not evaluated";
       runs_json.push_back(rj);
@@ -400,12 +421,19 @@ std::vector<GroupSummary> aggregate_batch(const BatchOptions& o) {
   nlohmann::json jg = nlohmann::json::array();
   for (const auto& g : groups) {
     const bool has_nees = !g.nees.t.empty();
+    // A metric no run has (no RPE, no covariances, no frames.csv, nothing evaluated) is an empty cell, not a 0.
+    const auto cell = [](bool known, double v) { return known ? fmt::format("{}", v) : std::string(); };
+    const bool ate = g.ate_trans_rmse.n > 0, rpe = g.rpe_trans_rmse.n > 0, scale = g.sim3_scale.n > 0;
+    const bool timing = g.timing.frames > 0;
     csv += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", g.dataset, g.config, g.runs,
-                       g.evaluated, g.failed, g.ate_trans_rmse.mean, g.ate_trans_rmse.median, g.ate_trans_rmse.std,
-                       g.ate_trans_rmse.max, g.ate_rot_rmse.mean, g.rpe_trans_rmse.mean, g.sim3_scale.mean,
-                       has_nees ? g.nees_summary.n_runs : 0, g.nees_summary.mean, g.nees_summary.fraction_in_band,
-                       g.nees_summary.band_lo, g.nees_summary.band_hi, g.timing.mean_ms, g.timing.median_ms,
-                       g.timing.p95_ms, g.timing.max_ms);
+                       g.evaluated, g.failed, cell(ate, g.ate_trans_rmse.mean), cell(ate, g.ate_trans_rmse.median),
+                       cell(ate, g.ate_trans_rmse.std), cell(ate, g.ate_trans_rmse.max),
+                       cell(g.ate_rot_rmse.n > 0, g.ate_rot_rmse.mean), cell(rpe, g.rpe_trans_rmse.mean),
+                       cell(scale, g.sim3_scale.mean), has_nees ? g.nees_summary.n_runs : 0,
+                       cell(has_nees, g.nees_summary.mean), cell(has_nees, g.nees_summary.fraction_in_band),
+                       cell(has_nees, g.nees_summary.band_lo), cell(has_nees, g.nees_summary.band_hi),
+                       cell(timing, g.timing.mean_ms), cell(timing, g.timing.median_ms), cell(timing, g.timing.p95_ms),
+                       cell(timing, g.timing.max_ms));
     nlohmann::json j = {{"dataset", g.dataset},
                         {"config", g.config},
                         {"runs", g.runs},
@@ -415,11 +443,12 @@ std::vector<GroupSummary> aggregate_batch(const BatchOptions& o) {
                         {"ate_rot_rmse_deg", to_json(g.ate_rot_rmse)},
                         {"rpe_trans_rmse_m", to_json(g.rpe_trans_rmse)},
                         {"sim3_scale", to_json(g.sim3_scale)},
-                        {"timing", {{"frames", g.timing.frames},
-                                    {"mean_ms", g.timing.mean_ms},
-                                    {"median_ms", g.timing.median_ms},
-                                    {"p95_ms", g.timing.p95_ms},
-                                    {"max_ms", g.timing.max_ms}}},
+                        {"timing", g.timing.frames == 0 ? nlohmann::json({{"frames", 0}})
+                                                        : nlohmann::json({{"frames", g.timing.frames},
+                                                                          {"mean_ms", g.timing.mean_ms},
+                                                                          {"median_ms", g.timing.median_ms},
+                                                                          {"p95_ms", g.timing.p95_ms},
+                                                                          {"max_ms", g.timing.max_ms}})},
                         {"run_dirs", g.run_dirs}};
     if (has_nees) {
       j["nees"] = to_json(g.nees_summary);

@@ -61,7 +61,8 @@ struct BatchOutcome {
   std::vector<std::string> failed_dirs;
 };
 
-/// Runs the missing runs (`jobs` at a time) and evaluates every finished run that has no eval.json yet.
+/// Runs the missing runs (`jobs` at a time) and evaluates every finished run that has no eval.json made with
+/// `options.eval` yet.
 /// `on_progress` is called after every change. Writes batch_plan.json and commands.txt first.
 BatchOutcome run_batch(const BatchOptions& options, const std::function<void(const BatchProgress&)>& on_progress);
 
@@ -82,7 +83,8 @@ struct GroupSummary {
   std::vector<std::string> run_dirs;
 };
 
-/// Reads every run's eval.json (evaluating runs that lack one) and writes batch.md, batch.csv and batch.json.
+/// Reads every run's eval.json (evaluating runs that lack one made with `options.eval`) and writes batch.md, batch.csv,
+/// batch.json and batch_plan.json.
 std::vector<GroupSummary> aggregate_batch(const BatchOptions& options);
 
 /// The Markdown table of the groups (as in batch.md).
@@ -93,6 +95,10 @@ std::string write_command_list(const BatchOptions& options, const std::string& p
 
 /// Writes a Slurm job-array script running line $SLURM_ARRAY_TASK_ID+1 of the command list (one run per task).
 void write_slurm_script(const BatchOptions& options, const std::string& path, const std::string& commands_path);
+
+/// Writes BATCH_DIR/batch_plan.json (the matrix and the evaluation options; run_batch and aggregate_batch do) and
+/// returns its path.
+std::string write_batch_plan(const BatchOptions& options);
 
 /// Reads BATCH_DIR/batch_plan.json back into options (to aggregate or report a batch later).
 BatchOptions load_batch_plan(const std::string& batch_dir);

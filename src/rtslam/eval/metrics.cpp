@@ -217,10 +217,31 @@ namespace {
 nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 }  // namespace
 
+nlohmann::json to_json(const EvalOptions& o) {
+  return {{"align", to_string(o.align)},
+          {"association",
+           {{"max_diff_s", o.association.max_diff_s},
+            {"offset_s", o.association.offset_s},
+            {"interpolate", o.association.interpolate},
+            {"max_gap_s", o.association.max_gap_s}}},
+          {"with_rpe", o.with_rpe},
+          {"rpe",
+           {{"delta", o.rpe.delta},
+            {"unit", to_string(o.rpe.unit)},
+            {"all_pairs", o.rpe.all_pairs},
+            {"rel_delta_tol", o.rpe.rel_delta_tol},
+            {"pairs_from_reference", o.rpe.pairs_from_reference}}}};
+}
+
 nlohmann::json to_json(const EvalResult& r, const EvalOptions& o, bool with_series) {
   nlohmann::json j;
+  j["options"] = to_json(o);
   j["poses"] = {{"estimate", r.n_est}, {"ground_truth", r.n_gt}, {"matched", r.n_matched}};
   j["association"] = {{"max_diff_s", o.association.max_diff_s}, {"offset_s", o.association.offset_s}};
+  if (o.association.interpolate) {  // the ground truth interpolated: max_gap_s bounds it, max_diff_s is not used
+    j["association"] = {
+        {"interpolate", true}, {"max_gap_s", o.association.max_gap_s}, {"offset_s", o.association.offset_s}};
+  }
   j["alignment"] = {{"method", to_string(r.align)},
                     {"scale", r.alignment.s},
                     {"rotation", {r.alignment.R(0, 0), r.alignment.R(0, 1), r.alignment.R(0, 2),

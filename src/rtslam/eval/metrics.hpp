@@ -96,6 +96,10 @@ EvalResult evaluate(const Trajectory& est, const Trajectory& gt, const EvalOptio
 
 nlohmann::json to_json(const ErrorStats& s);
 /// JSON of the result; with `with_series` the per-pose error arrays are included.
+/// Every option of an evaluation (alignment, association, RPE), so that a stored result can be checked against the
+/// options asked for before it is reused.
+nlohmann::json to_json(const EvalOptions& options);
+/// Includes the options (`options`, to_json above).
 nlohmann::json to_json(const EvalResult& r, const EvalOptions& options, bool with_series = false);
 /// When the alignment says more about the residual than about the run (its rotation or the Sim(3) scale uncertain
 /// beyond kMaxAlignmentRotationStdDeg / kMaxAlignmentScaleStd, e.g. over a standstill): one line saying so and what

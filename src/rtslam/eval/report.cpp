@@ -327,7 +327,7 @@ std::string write_batch_report(const std::string& batch_dir, const ReportOptions
     const bool nees = !g.nees.t.empty();
     page.html += fmt::format(
         "<tr><td>{}</td><td>{}</td><td>{}/{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.3f}</td>"
-        "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2f} / {:.2f}</td></tr>\n",
+        "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
         html_escape(g.dataset), html_escape(g.config), g.evaluated, g.runs, g.ate_trans_rmse.mean,
         g.ate_trans_rmse.median, g.ate_trans_rmse.std, g.ate_rot_rmse.mean,
         g.rpe_trans_rmse.n ? fmt::format("{:.4f}", g.rpe_trans_rmse.mean) : "-",
@@ -336,7 +336,7 @@ std::string write_batch_report(const std::string& batch_dir, const ReportOptions
         nees ? fmt::format("[{:.2f}, {:.2f}] N={}", g.nees_summary.band_lo, g.nees_summary.band_hi,
                            g.nees_summary.n_runs)
              : "-",
-        g.timing.mean_ms, g.timing.p95_ms);
+        g.timing.frames ? fmt::format("{:.2f} / {:.2f}", g.timing.mean_ms, g.timing.p95_ms) : "-");
   }
   page.html += "</table>\n";
   page.p("Tables: batch.md, batch.csv, batch.json in the batch directory.");

@@ -5,15 +5,21 @@
 // TUM files with the quaternion scalar first; landmarks M×3 Euclidean positions in W (m).
 // Errors: rtslam::ConfigError → rtslam.ConfigError (a ValueError), IoError → rtslam.IoError (an OSError), DataError
 // and InvariantError → rtslam.DataError / rtslam.InvariantError (RuntimeErrors), with the library's one-line message.
-// The GIL is released while the filter runs; an `on_frame` callback takes it back for its own call.
+// The GIL is released while the filter runs; an `on_frame` callback takes it back for its own call, and so does a
+// check for signals after each image (Ctrl-C raises KeyboardInterrupt during a run). A Session may be used from
+// several threads: its calls take turns (one lock, taken with the GIL released).
 #include <pybind11/eigen.h>
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <atomic>
+#include <cmath>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <yaml-cpp/yaml.h>
 
@@ -60,8 +66,19 @@ Trajectory to_trajectory(const Array& a, const char* what) {
   traj.source = what;
   auto m = a.unchecked<2>();
   for (py::ssize_t r = 0; r < a.shape(0); ++r) {
+    for (py::ssize_t k = 0; k < 8; ++k) {
+      if (!std::isfinite(m(r, k))) {
+        throw ConfigError(std::string(what) + ": non-finite value at row " + std::to_string(r) + ", column " +
+                          std::to_string(k));
+      }
+    }
     StampedPose s;
-    s.t = from_seconds(m(r, 0));
+    const std::optional<TimeNs> t = from_seconds_checked(m(r, 0));
+    if (!t) {
+      throw ConfigError(std::string(what) + ": time " + std::to_string(m(r, 0)) + " s at row " + std::to_string(r) +
+                        " is beyond the int64 nanosecond range");
+    }
+    s.t = *t;
     s.p_WR = Eigen::Vector3d(m(r, 1), m(r, 2), m(r, 3));
     s.q_WR = Eigen::Quaterniond(m(r, 4), m(r, 5), m(r, 6), m(r, 7));
     if (!(s.q_WR.norm() > 0.0)) throw ConfigError(std::string(what) + ": zero quaternion at row " + std::to_string(r));
@@ -151,6 +168,31 @@ Eigen::Matrix<double, 7, 1> pose_vector(const StampedPose& p) {
   return v;
 }
 
+// Ctrl-C during a run: Python's signal handlers run only in the main thread with the GIL, so a run checks for them
+// after each image (taking the GIL briefly). A pending KeyboardInterrupt (or any exception a handler raised) is kept
+// and the run stops; rethrow() raises it once the GIL is back.
+class SignalCheck {
+ public:
+  // Called without the GIL; true when the run must stop.
+  bool interrupted() {
+    if (error_) return true;
+    py::gil_scoped_acquire gil;
+    if (PyErr_CheckSignals() != 0) error_.emplace();  // error_already_set fetches the pending exception
+    return error_.has_value();
+  }
+  // With the GIL: raises what a signal handler raised, if anything.
+  void rethrow() {
+    if (error_) {
+      py::error_already_set e = std::move(*error_);
+      error_.reset();
+      throw e;
+    }
+  }
+
+ private:
+  std::optional<py::error_already_set> error_;
+};
+
 // A run driven from Python, one processed image at a time (pipeline::ImageSlam).
 class Session {
  public:
@@ -163,50 +205,77 @@ class Session {
   }
   // The next processed image as a dict (frame statistics + index + pose), or None at the end of the run.
   py::object step() {
-    if (!slam_) throw DataError("the session is finished");
     bool more = false;
+    slam::FrameStats stats;
+    StampedPose pose;
+    long index = 0;
     {
-      py::gil_scoped_release nogil;
+      py::gil_scoped_release nogil;  // then the lock: a thread holding it may wait for the GIL
+      std::lock_guard<std::mutex> lock(mu_);
+      if (!slam_) throw DataError("the session is finished");
       more = slam_->step();
+      const pipeline::ImageSlamResult& r = slam_->result();
+      more = more && !r.frames.empty();
+      if (more) {
+        stats = r.frames.back();
+        pose = r.estimate.poses.back();
+        index = static_cast<long>(r.frames.size()) - 1;
+      }
     }
-    const pipeline::ImageSlamResult& r = slam_->result();
-    if (!more || r.frames.empty()) return py::none();
-    py::dict d = frame_dict(r.frames.back());
-    d["index"] = static_cast<long>(r.frames.size()) - 1;
-    d["pose"] = pose_vector(r.estimate.poses.back());
+    if (!more) return py::none();
+    py::dict d = frame_dict(stats);
+    d["index"] = index;
+    d["pose"] = pose_vector(pose);
     return d;
   }
   // The current map's landmark positions (M×3, W).
   Array landmarks() {
-    if (!slam_) throw DataError("the session is finished");
-    const slam::Map& map = slam_->system().map();
-    const Eigen::VectorXd& mean = map.state().mean_vector();
-    Array out({static_cast<py::ssize_t>(map.landmarks().size()), py::ssize_t{3}});
+    std::vector<Eigen::Vector3d> positions;
+    {
+      py::gil_scoped_release nogil;
+      std::lock_guard<std::mutex> lock(mu_);
+      if (!slam_) throw DataError("the session is finished");
+      const slam::Map& map = slam_->system().map();
+      const Eigen::VectorXd& mean = map.state().mean_vector();
+      for (const auto& l : map.landmarks()) positions.push_back(l->position(mean));
+    }
+    Array out({static_cast<py::ssize_t>(positions.size()), py::ssize_t{3}});
     auto a = out.mutable_unchecked<2>();
-    for (std::size_t i = 0; i < map.landmarks().size(); ++i) {
-      const Eigen::Vector3d p = map.landmarks()[i]->position(mean);
-      for (int k = 0; k < 3; ++k) a(static_cast<py::ssize_t>(i), k) = p[k];
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      for (int k = 0; k < 3; ++k) a(static_cast<py::ssize_t>(i), k) = positions[i][k];
     }
     return out;
   }
-  std::size_t frames() const { return slam_ ? slam_->result().frames.size() : 0; }
-  // Runs to the end (if not there yet) and returns the Result; the session is over.
+  std::size_t frames() {
+    py::gil_scoped_release nogil;
+    std::lock_guard<std::mutex> lock(mu_);
+    return slam_ ? slam_->result().frames.size() : 0;
+  }
+  // Runs to the end (if not there yet) and returns the Result; the session is over. Ctrl-C raises KeyboardInterrupt
+  // and leaves the session where it stopped (step() or finish() go on from there).
   PyResult finish() {
-    if (!slam_) throw DataError("the session is finished");
     pipeline::ImageSlamResult r;
+    SignalCheck signals;
     {
       py::gil_scoped_release nogil;
-      while (slam_->step()) {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (!slam_) throw DataError("the session is finished");
+      bool interrupted = false;
+      while (!(interrupted = signals.interrupted()) && slam_->step()) {
       }
-      r = slam_->finish();
-      slam_.reset();
+      if (!interrupted) {
+        r = slam_->finish();
+        slam_.reset();
+      }
     }
+    signals.rethrow();
     return to_py(r, ds_.ground_truth);
   }
 
  private:
   io::Dataset ds_;
   std::unique_ptr<pipeline::ImageSlam> slam_;
+  std::mutex mu_;  // one call at a time (taken after releasing the GIL)
 };
 
 PyResult run(const pipeline::ImageSlamOptions& options, const std::optional<std::string>& dataset,
@@ -224,11 +293,17 @@ PyResult run(const pipeline::ImageSlamOptions& options, const std::optional<std:
   }
   io::Dataset ds;
   pipeline::ImageSlamResult result;
+  SignalCheck signals;
+  std::atomic<bool> stop{false};
+  const auto on_image = [&](int, int) {
+    if (signals.interrupted()) stop = true;
+  };
   {
     py::gil_scoped_release nogil;
     ds = open_run_dataset(options, dataset);
-    result = pipeline::run_image_slam(ds, dataset ? options.on_selected_cameras() : options, {}, observer);
+    result = pipeline::run_image_slam(ds, dataset ? options.on_selected_cameras() : options, on_image, observer, &stop);
   }
+  signals.rethrow();  // KeyboardInterrupt: the partial result is dropped, as Python does for any interrupted call
   return to_py(result, ds.ground_truth);
 }
 
@@ -253,6 +328,10 @@ py::dict ate(const Array& estimate, const Array& ground_truth, const std::string
 
 PYBIND11_MODULE(rtslam, m) {
   m.doc() = "rtslam: EKF-SLAM on images and IMU (docs/python.md)";
+  // numpy's C API loaded now, with the GIL: pybind11 loads it on the first array, and two threads making their first
+  // arrays at once (one holding the loader's static guard, the other the GIL) deadlocked.
+  py::module_::import("numpy");
+  (void)Array(0);
 
   // Exceptions: most derived first; the message is the library's one line.
   static py::exception<ConfigError> config_error(m, "ConfigError", PyExc_ValueError);

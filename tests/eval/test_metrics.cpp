@@ -288,6 +288,23 @@ TEST(Association, WithoutTimestampsIsByIndexAndNeedsEqualLengths) {
   EXPECT_THROW(associate(far, gt), DataError);
 }
 
+TEST(Evaluate, TrajectoriesWithoutTimestampsHaveNoDuration) {
+  // KITTI poses are numbered, not timed: their "duration" was the index span read as nanoseconds (0.00 s printed,
+  // 1.99e-07 in the JSON).
+  Trajectory gt = test::wavy_trajectory(40);
+  for (std::size_t i = 0; i < gt.poses.size(); ++i) gt.poses[i].t = static_cast<TimeNs>(i);
+  gt.has_timestamps = false;
+  const EvalOptions o;
+  const EvalResult r = evaluate(gt, gt, o);
+  EXPECT_TRUE(std::isnan(r.duration_s));
+  EXPECT_TRUE(to_json(r, o)["duration_s"].is_null());
+  const std::string table = format_table(r, o);
+  EXPECT_NE(table.find("40 matched; "), std::string::npos) << table;
+  EXPECT_EQ(table.find(" s, "), std::string::npos) << table;
+  EXPECT_GT(to_json(evaluate(test::wavy_trajectory(40), test::wavy_trajectory(40), o), o)["duration_s"].get<double>(),
+            1.9);
+}
+
 // Ground truth sampled at 200 Hz, estimates at 20 Hz halfway between two samples: nearest-neighbour association
 // pairs poses 2.5 ms apart (a position error of v·2.5 ms), interpolation evaluates the ground truth at the estimate's
 // own time. On a trajectory that is linear in position and uniform in rotation between samples, the interpolated

@@ -275,6 +275,15 @@ TEST(TrajectoryIo, ErrorsNameFileAndLine) {
   write_text(dir / "five.txt", "1 2 3 4 5\n");
   EXPECT_THROW_WITH(read_trajectory(dir / "five.txt"), IoError, "cannot tell the trajectory format");
   EXPECT_THROW_WITH(read_trajectory(dir / "missing.txt"), IoError, "missing.txt: file not found");
+  // A TUM file with nanosecond stamps (ORB-SLAM's on EuRoC) says so instead of "not a number".
+  write_text(dir / "ns.txt", "1403636579763555584 0 0 0 0 0 0 1\n");
+  EXPECT_THROW_WITH(read_trajectory(dir / "ns.txt", TrajectoryFormat::Tum), IoError,
+                    "ns.txt:1: timestamp '1403636579763555584' is not in seconds (a 19-digit integer: nanoseconds?); a "
+                    "TUM trajectory holds seconds, e.g. 1403636579.763555584");
+  // KITTI lines have no time field: the numbers are fields 1 to 12.
+  write_text(dir / "kitti_nan.txt", "nan 0 0 0 0 1 0 0 0 0 1 0\n");
+  EXPECT_THROW_WITH(read_trajectory(dir / "kitti_nan.txt", TrajectoryFormat::Kitti), DataError,
+                    "kitti_nan.txt:1: non-finite value in field 1");
 }
 
 }  // namespace

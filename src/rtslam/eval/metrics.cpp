@@ -189,7 +189,8 @@ EvalResult evaluate(const Trajectory& est, const Trajectory& gt, const EvalOptio
   } else {
     r.sim3_scale = std::nan("");
   }
-  r.duration_s = to_seconds(gt_sync.poses.back().t - gt_sync.poses.front().t);
+  // KITTI poses have no times (their "stamps" are indices): no duration.
+  r.duration_s = gt_sync.has_timestamps ? to_seconds(gt_sync.poses.back().t - gt_sync.poses.front().t) : std::nan("");
   for (std::size_t i = 1; i < gt_sync.poses.size(); ++i)
     r.path_length_m += (gt_sync.poses[i].p_WR - gt_sync.poses[i - 1].p_WR).norm();
   const Trajectory est_aligned = apply_alignment(r.alignment, est_sync);
@@ -251,7 +252,7 @@ nlohmann::json to_json(const EvalResult& r, const EvalOptions& o, bool with_seri
   j["sim3_scale"] = number_or_null(r.sim3_scale);
   j["sim3_scale_rel_std"] = number_or_null(r.sim3_scale_rel_std);
   j["alignment"]["rotation_std_deg"] = number_or_null(r.alignment_rotation_std_deg);
-  j["duration_s"] = r.duration_s;
+  j["duration_s"] = number_or_null(r.duration_s);
   j["path_length_m"] = r.path_length_m;
   j["ate"] = {{"trans_m", to_json(r.ate.trans_m)}, {"rot_deg", to_json(r.ate.rot_deg)}};
   if (with_series) {
@@ -289,7 +290,8 @@ std::string alignment_warning(const EvalResult& r) {
     what += fmt::format("{}the Sim(3) scale {}by {:.3g} %", rotation ? " and " : "", rotation ? "" : "is uncertain ",
                         100.0 * r.sim3_scale_rel_std);
   }
-  return fmt::format("warning: the alignment rests on little motion ({:.3f} m of ground-truth path, ATE {:.4f} m): {} "
+  // Little motion, or residuals large against it (a wrong scale under SE(3)): either leaves the fit loose.
+  return fmt::format("warning: the alignment is weakly determined ({:.3f} m of ground-truth path, ATE {:.4f} m): {} "
                      "(first order), so {} say{} little about the run{}",
                      r.path_length_m, r.ate.trans_m.rmse, what,
                      rotation && scale ? "the ATE rotation and the scale"
@@ -301,8 +303,9 @@ std::string alignment_warning(const EvalResult& r) {
 
 std::string format_table(const EvalResult& r, const EvalOptions& o) {
   std::string out;
-  out += fmt::format("poses: {} estimated, {} ground truth, {} matched; {:.2f} s, {:.2f} m of ground truth\n",
-                     r.n_est, r.n_gt, r.n_matched, r.duration_s, r.path_length_m);
+  out += fmt::format("poses: {} estimated, {} ground truth, {} matched; {}{:.2f} m of ground truth\n", r.n_est, r.n_gt,
+                     r.n_matched, std::isfinite(r.duration_s) ? fmt::format("{:.2f} s, ", r.duration_s) : "",
+                     r.path_length_m);
   out += fmt::format("alignment: {} (scale {:.6f}); Sim(3) scale estimate {:.6f}\n", to_string(r.align),
                      r.alignment.s, r.sim3_scale);
   if (const std::string w = alignment_warning(r); !w.empty()) out += w + "\n";

@@ -84,7 +84,7 @@ struct EvalResult {
   // chosen SE3 / Sim3 alignment's rotation (deg, worst axis) and the Sim(3) scale (relative).
   double alignment_rotation_std_deg = std::numeric_limits<double>::quiet_NaN();
   double sim3_scale_rel_std = std::numeric_limits<double>::quiet_NaN();
-  double duration_s = 0.0;    // time span of the associated poses
+  double duration_s = 0.0;    // time span of the associated poses (NaN without timestamps: KITTI)
   double path_length_m = 0.0; // path length of the associated ground truth
   AteResult ate;
   std::optional<RpeResult> rpe;

@@ -284,10 +284,10 @@ std::string write_run_report(const std::string& run_dir, const ReportOptions& op
     page.html += stats_row("RPE rotation (deg)", r.metrics.rpe->rot_deg);
   }
   page.html += "</table>\n";
-  page.p(fmt::format("Alignment {} (scale {:.6f}); Sim(3) scale estimate {:.6f}; {} matched poses over {:.2f} s and "
-                     "{:.2f} m.",
+  page.p(fmt::format("Alignment {} (scale {:.6f}); Sim(3) scale estimate {:.6f}; {} matched poses over {}{:.2f} m.",
                      to_string(r.metrics.align), r.metrics.alignment.s, r.metrics.sim3_scale, r.metrics.n_matched,
-                     r.metrics.duration_s, r.metrics.path_length_m));
+                     std::isfinite(r.metrics.duration_s) ? fmt::format("{:.2f} s and ", r.metrics.duration_s) : "",
+                     r.metrics.path_length_m));
   if (const std::string w = alignment_warning(r.metrics); !w.empty()) page.p(w, "note");
   if (r.nees_summary)
     page.p(fmt::format("NEES (first-pose aligned): mean {:.3f} (expected 6), {:.1f} % of poses inside the {:g} % band "

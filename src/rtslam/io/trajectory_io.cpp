@@ -33,9 +33,12 @@ std::vector<double> parse_numbers(const std::vector<std::string_view>& fields, s
   return values;
 }
 
-void check_finite(const std::vector<double>& v, const std::string& path, int line) {
+// `first_field`: the 1-based field number of v[0] on its line.
+void check_finite(const std::vector<double>& v, const std::string& path, int line, size_t first_field = 2) {
   for (size_t i = 0; i < v.size(); ++i) {
-    if (!std::isfinite(v[i])) throw DataError(fmt::format("{}:{}: non-finite value in field {}", path, line, i + 2));
+    if (!std::isfinite(v[i])) {
+      throw DataError(fmt::format("{}:{}: non-finite value in field {}", path, line, i + first_field));
+    }
   }
 }
 
@@ -69,6 +72,15 @@ Trajectory read_tum(const std::string& path) {
     }
     StampedPose pose;
     if (!parse_seconds(f[0], pose.t)) {
+      // A long integer is a time in nanoseconds (ORB-SLAM writes EuRoC's stamps so): TUM files hold seconds.
+      const bool integer =
+          !f[0].empty() && std::all_of(f[0].begin(), f[0].end(), [](char c) { return c >= '0' && c <= '9'; });
+      if (integer && f[0].size() > 10) {
+        throw IoError(fmt::format("{}:{}: timestamp '{}' is not in seconds (a {}-digit integer: nanoseconds?); a TUM "
+                                  "trajectory holds seconds, e.g. {}.{}",
+                                  path, in.line_number(), f[0], f[0].size(), f[0].substr(0, f[0].size() - 9),
+                                  f[0].substr(f[0].size() - 9)));
+      }
       throw IoError(fmt::format("{}:{}: timestamp '{}' is not a number", path, in.line_number(), f[0]));
     }
     const auto v = parse_numbers(f, 1, path, in.line_number());
@@ -94,7 +106,7 @@ Trajectory read_kitti(const std::string& path) {
       throw IoError(fmt::format("{}:{}: expected 12 numbers (3x4 [R|t]), found {}", path, in.line_number(), f.size()));
     }
     const auto v = parse_numbers(f, 0, path, in.line_number());
-    check_finite(v, path, in.line_number());
+    check_finite(v, path, in.line_number(), 1);
     Eigen::Matrix3d R;
     Eigen::Vector3d t;
     for (int r = 0; r < 3; ++r) {

@@ -173,13 +173,21 @@ Eigen::Matrix<double, 7, 1> pose_vector(const StampedPose& p) {
 // and the run stops; rethrow() raises it once the GIL is back.
 class SignalCheck {
  public:
+  // With the GIL. Python runs signal handlers in the main thread only: elsewhere there is nothing to check (and no
+  // reason to take the GIL after each image).
+  SignalCheck() {
+    const py::module_ threading = py::module_::import("threading");
+    main_thread_ = threading.attr("current_thread")().is(threading.attr("main_thread")());
+  }
   // Called without the GIL; true when the run must stop.
   bool interrupted() {
     if (error_) return true;
+    if (!main_thread_) return false;
     py::gil_scoped_acquire gil;
     if (PyErr_CheckSignals() != 0) error_.emplace();  // error_already_set fetches the pending exception
     return error_.has_value();
   }
+  bool pending() const { return error_.has_value(); }
   // With the GIL: raises what a signal handler raised, if anything.
   void rethrow() {
     if (error_) {
@@ -190,6 +198,7 @@ class SignalCheck {
   }
 
  private:
+  bool main_thread_ = false;
   std::optional<py::error_already_set> error_;
 };
 
@@ -258,12 +267,16 @@ class Session {
     SignalCheck signals;
     {
       py::gil_scoped_release nogil;
-      std::lock_guard<std::mutex> lock(mu_);
-      if (!slam_) throw DataError("the session is finished");
-      bool interrupted = false;
-      while (!(interrupted = signals.interrupted()) && slam_->step()) {
+      // Signals are checked without the lock: a handler may call this session.
+      bool more = true;
+      while (more && !signals.interrupted()) {
+        std::lock_guard<std::mutex> lock(mu_);
+        if (!slam_) throw DataError("the session is finished");
+        more = slam_->step();
       }
-      if (!interrupted) {
+      if (!signals.pending()) {
+        std::lock_guard<std::mutex> lock(mu_);
+        if (!slam_) throw DataError("the session is finished");
         r = slam_->finish();
         slam_.reset();
       }
@@ -298,10 +311,14 @@ PyResult run(const pipeline::ImageSlamOptions& options, const std::optional<std:
   const auto on_image = [&](int, int) {
     if (signals.interrupted()) stop = true;
   };
-  {
+  try {
     py::gil_scoped_release nogil;
     ds = open_run_dataset(options, dataset);
     result = pipeline::run_image_slam(ds, dataset ? options.on_selected_cameras() : options, on_image, observer, &stop);
+  } catch (const Error&) {
+    // A run stopped by Ctrl-C before it could give a result (an inertial robot not started yet) raises the
+    // KeyboardInterrupt, not the run's complaint about having been stopped.
+    if (!signals.pending()) throw;
   }
   signals.rethrow();  // KeyboardInterrupt: the partial result is dropped, as Python does for any interrupted call
   return to_py(result, ds.ground_truth);

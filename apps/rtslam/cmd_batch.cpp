@@ -51,7 +51,7 @@ void run_batch_cmd(const BatchArgs& a) {
   if (!a.emit_slurm.empty() || !a.emit_commands.empty()) {
     const std::string commands =
         a.emit_commands.empty() ? (std::filesystem::path(a.out) / "commands.txt").string() : a.emit_commands;
-    eval::write_batch_plan(o);  // for --aggregate-only and --report once the runs are done
+    eval::write_batch_plan(o, true);  // for --aggregate-only and --report once the runs are done
     eval::write_command_list(o, commands);
     std::cout << fmt::format("wrote {} ({} runs, one per line; e.g. parallel -j N < {})\n", commands, runs.size(),
                              commands);

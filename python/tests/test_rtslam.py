@@ -248,21 +248,26 @@ class Threads(unittest.TestCase):
         self.assertEqual(session.frames, steps)
 
     def test_ctrl_c_interrupts_a_long_run(self):
-        # SIGINT one second into a 60 s simulated run: KeyboardInterrupt at the next image, not after the whole run.
+        # SIGINT one second into a 60 s simulated run: KeyboardInterrupt at the next image, not after the whole run;
+        # also for an inertial run stopped before its robot started (whose stop used to raise DataError instead).
         script = (
             "import os, signal, threading, time, rtslam\n"
-            "o = rtslam.default_options(); o.sim_duration_s = 60.0\n"
-            "threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()\n"
-            "t0 = time.time()\n"
-            "try:\n"
-            "    rtslam.run(o)\n"
-            "    print('finished')\n"
-            "except KeyboardInterrupt:\n"
-            "    print('interrupted after %.1f s' % (time.time() - t0))\n")
+            "for robot, delay in (('constant_velocity', 1.0), ('inertial', 0.2)):\n"
+            "    o = rtslam.default_options(); o.sim_duration_s = 60.0; o.robot = robot\n"
+            "    threading.Timer(delay, lambda: os.kill(os.getpid(), signal.SIGINT)).start()\n"
+            "    t0 = time.time()\n"
+            "    try:\n"
+            "        rtslam.run(o)\n"
+            "        print(robot, 'finished')\n"
+            "    except KeyboardInterrupt:\n"
+            "        print(robot, 'interrupted after %.1f s' % (time.time() - t0))\n")
         out = self.run_script(script)
         self.assertEqual(out.returncode, 0, out.stderr)
-        self.assertIn("interrupted after", out.stdout)
-        self.assertLess(float(out.stdout.split("after")[1].split()[0]), 10.0)
+        lines = out.stdout.strip().splitlines()
+        self.assertEqual(len(lines), 2, out.stdout)
+        for line in lines:
+            self.assertIn("interrupted after", line)
+            self.assertLess(float(line.split("after")[1].split()[0]), 10.0)
 
 
 if __name__ == "__main__":

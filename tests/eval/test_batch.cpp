@@ -118,6 +118,7 @@ TEST(Batch, AStoredEvaluationMadeWithOtherOptionsIsRedoneAndThePlanIsWrittenWhen
   o.eval.align = Alignment::Sim3;
   o.eval.rpe.delta = 1000.0;  // metres: longer than the runs, so no run has an RPE
   o.eval.rpe.unit = DeltaUnit::Meters;
+  o.eval.rpe.all_pairs = true;  // an option the plan's first keys did not hold
   const auto sim3 = aggregate_batch(o);
   ASSERT_EQ(sim3.size(), 1u);
   EXPECT_EQ(sim3[0].evaluated, 2u);
@@ -127,6 +128,12 @@ TEST(Batch, AStoredEvaluationMadeWithOtherOptionsIsRedoneAndThePlanIsWrittenWhen
   const BatchOptions back = load_batch_plan(dir.string());
   EXPECT_EQ(back.eval.align, Alignment::Sim3);
   EXPECT_EQ(back.eval.rpe.unit, DeltaUnit::Meters);
+  EXPECT_TRUE(back.eval.rpe.all_pairs);
+  // An aggregation of another matrix (an --aggregate-only without the batch's seeds) keeps the stored plan.
+  BatchOptions one_seed = o;
+  one_seed.seeds = {0};
+  aggregate_batch(one_seed);
+  EXPECT_EQ(load_batch_plan(dir.string()).seeds, o.seeds);
   std::ifstream csv(dir / "batch.csv");
   std::string header, row;
   std::getline(csv, header);

@@ -147,6 +147,7 @@ nlohmann::json plan_json(const BatchOptions& o, const std::vector<RunSpec>& runs
   j["align"] = to_string(o.eval.align);
   j["max_diff_s"] = o.eval.association.max_diff_s;
   j["rpe"] = {{"delta", o.eval.rpe.delta}, {"unit", to_string(o.eval.rpe.unit)}};
+  j["eval"] = to_json(o.eval);  // all of them (the three keys above are kept for older readers)
   j["confidence"] = o.confidence;
   nlohmann::json jr = nlohmann::json::array();
   for (const auto& r : runs)
@@ -222,10 +223,20 @@ void write_slurm_script(const BatchOptions& o, const std::string& path, const st
   fs::permissions(path, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
 }
 
-std::string write_batch_plan(const BatchOptions& o) {
+std::string write_batch_plan(const BatchOptions& o, bool replace_matrix) {
   const fs::path root = absolute(o.out_dir);
   fs::create_directories(root);
   const std::string path = (root / "batch_plan.json").string();
+  if (!replace_matrix && fs::exists(path)) {
+    // A plan of another matrix (an --aggregate-only that left out --dataset, --config or --seeds) is kept: a report
+    // made from it later then still covers the runs that exist.
+    const BatchOptions stored = load_batch_plan(root.string());
+    if (stored.datasets != o.datasets || stored.configs != o.configs || stored.seeds != o.seeds ||
+        stored.duration_s != o.duration_s || stored.extra_args != o.extra_args) {
+      rtslam::logger("eval")->warn("{} kept: it describes another matrix of runs than this invocation's", path);
+      return path;
+    }
+  }
   write_text(path, plan_json(o, plan_batch(o)).dump(1) + "\n");
   return path;
 }
@@ -233,7 +244,7 @@ std::string write_batch_plan(const BatchOptions& o) {
 BatchOutcome run_batch(const BatchOptions& o, const std::function<void(const BatchProgress&)>& on_progress) {
   const auto runs = plan_batch(o);
   const fs::path root = absolute(o.out_dir);
-  write_batch_plan(o);
+  write_batch_plan(o, true);
   write_command_list(o, (root / "commands.txt").string());
 
   BatchOutcome outcome;
@@ -335,7 +346,7 @@ std::string fmt_num(double v, int prec = 4) {
 std::vector<GroupSummary> aggregate_batch(const BatchOptions& o) {
   const auto runs = plan_batch(o);
   const fs::path root = absolute(o.out_dir);
-  write_batch_plan(o);  // what was aggregated, for a report later (also after --emit-slurm and --aggregate-only)
+  write_batch_plan(o, false);  // what was aggregated, for a report later (also after --emit-slurm and --aggregate-only)
   std::map<std::pair<std::string, std::string>, std::size_t> index;
   std::vector<GroupSummary> groups;
   struct Acc {
@@ -516,6 +527,20 @@ BatchOptions load_batch_plan(const std::string& batch_dir) {
     o.eval.association.max_diff_s = j.at("max_diff_s").get<double>();
     o.eval.rpe.delta = j.at("rpe").at("delta").get<double>();
     o.eval.rpe.unit = parse_delta_unit(j.at("rpe").at("unit").get<std::string>());
+    if (j.contains("eval")) {  // every evaluation option (plans written since 29 Nov 2026)
+      const nlohmann::json& e = j.at("eval");
+      o.eval.align = parse_alignment(e.at("align").get<std::string>());
+      o.eval.association.max_diff_s = e.at("association").at("max_diff_s").get<double>();
+      o.eval.association.offset_s = e.at("association").at("offset_s").get<double>();
+      o.eval.association.interpolate = e.at("association").at("interpolate").get<bool>();
+      o.eval.association.max_gap_s = e.at("association").at("max_gap_s").get<double>();
+      o.eval.with_rpe = e.at("with_rpe").get<bool>();
+      o.eval.rpe.delta = e.at("rpe").at("delta").get<double>();
+      o.eval.rpe.unit = parse_delta_unit(e.at("rpe").at("unit").get<std::string>());
+      o.eval.rpe.all_pairs = e.at("rpe").at("all_pairs").get<bool>();
+      o.eval.rpe.rel_delta_tol = e.at("rpe").at("rel_delta_tol").get<double>();
+      o.eval.rpe.pairs_from_reference = e.at("rpe").at("pairs_from_reference").get<bool>();
+    }
     o.confidence = j.at("confidence").get<double>();
   } catch (const nlohmann::json::exception& e) {
     throw IoError(fmt::format("{}: bad batch plan ({})", path.string(), e.what()));

@@ -96,9 +96,10 @@ std::string write_command_list(const BatchOptions& options, const std::string& p
 /// Writes a Slurm job-array script running line $SLURM_ARRAY_TASK_ID+1 of the command list (one run per task).
 void write_slurm_script(const BatchOptions& options, const std::string& path, const std::string& commands_path);
 
-/// Writes BATCH_DIR/batch_plan.json (the matrix and the evaluation options; run_batch and aggregate_batch do) and
-/// returns its path.
-std::string write_batch_plan(const BatchOptions& options);
+/// Writes BATCH_DIR/batch_plan.json (the matrix and the evaluation options) and returns its path. run_batch and the
+/// command-list / Slurm emitters define the matrix (`replace_matrix`); aggregate_batch keeps a stored plan of another
+/// matrix (an --aggregate-only that left out part of it) with a warning.
+std::string write_batch_plan(const BatchOptions& options, bool replace_matrix);
 
 /// Reads BATCH_DIR/batch_plan.json back into options (to aggregate or report a batch later).
 BatchOptions load_batch_plan(const std::string& batch_dir);

@@ -325,11 +325,14 @@ std::string write_batch_report(const std::string& batch_dir, const ReportOptions
                "<th>avg NEES</th><th>in band</th><th>band</th><th>frame ms mean / p95</th></tr>\n";
   for (const auto& g : groups) {
     const bool nees = !g.nees.t.empty();
+    const auto ate_cell = [&g](double v, int decimals) {  // a group with no evaluated run has no ATE
+      return g.evaluated ? fmt::format("{:.{}f}", v, decimals) : std::string("-");
+    };
     page.html += fmt::format(
-        "<tr><td>{}</td><td>{}</td><td>{}/{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.3f}</td>"
+        "<tr><td>{}</td><td>{}</td><td>{}/{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
         "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
-        html_escape(g.dataset), html_escape(g.config), g.evaluated, g.runs, g.ate_trans_rmse.mean,
-        g.ate_trans_rmse.median, g.ate_trans_rmse.std, g.ate_rot_rmse.mean,
+        html_escape(g.dataset), html_escape(g.config), g.evaluated, g.runs, ate_cell(g.ate_trans_rmse.mean, 4),
+        ate_cell(g.ate_trans_rmse.median, 4), ate_cell(g.ate_trans_rmse.std, 4), ate_cell(g.ate_rot_rmse.mean, 3),
         g.rpe_trans_rmse.n ? fmt::format("{:.4f}", g.rpe_trans_rmse.mean) : "-",
         nees ? fmt::format("{:.2f}", g.nees_summary.mean) : "-",
         nees ? fmt::format("{:.0f} %", 100 * g.nees_summary.fraction_in_band) : "-",

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -156,17 +157,18 @@ nlohmann::json plan_json(const BatchOptions& o, const std::vector<RunSpec>& runs
   return j;
 }
 
-// Whether a run's eval.json exists and was made with these options (an earlier batch with another alignment or RPE
+// A run's eval.json when it exists and was made with these options (an earlier batch with another alignment or RPE
 // delta, or `rtslam report RUN_DIR` with its defaults, leaves one made with others: it is evaluated again).
-bool eval_current(const RunSpec& run, const EvalOptions& eval) {
+std::optional<nlohmann::json> current_eval(const RunSpec& run, const EvalOptions& eval) {
   const fs::path path = fs::path(run.dir) / "eval.json";
-  if (!fs::exists(path)) return false;
+  if (!fs::exists(path)) return std::nullopt;
   try {
-    const nlohmann::json j = read_json(path.string());
-    return j.contains("options") && j["options"] == to_json(eval);
+    nlohmann::json j = read_json(path.string());
+    if (j.contains("options") && j["options"] == to_json(eval)) return j;
   } catch (const Error&) {
-    return false;  // unreadable: written again
+    // unreadable: written again
   }
+  return std::nullopt;
 }
 
 // Evaluates a finished run into its eval.json; false (and a note in the log) if the evaluation fails.
@@ -261,7 +263,7 @@ BatchOutcome run_batch(const BatchOptions& o, const std::function<void(const Bat
   for (std::size_t i = 0; i < runs.size(); ++i) {
     if (run_finished(runs[i])) {
       ++progress.skipped;
-      if (!eval_current(runs[i], o.eval)) evaluate_into_json(runs[i], o.eval);
+      if (!current_eval(runs[i], o.eval)) evaluate_into_json(runs[i], o.eval);
     } else {
       todo.push_back(i);
     }
@@ -374,14 +376,14 @@ std::vector<GroupSummary> aggregate_batch(const BatchOptions& o) {
       runs_json.push_back(rj);
       continue;
     }
-    const fs::path eval_path = fs::path(r.dir) / "eval.json";
-    if (!eval_current(r, o.eval) && !evaluate_into_json(r, o.eval)) {
+    std::optional<nlohmann::json> current = current_eval(r, o.eval);
+    if (!current && !evaluate_into_json(r, o.eval)) {
       ++g.failed;
       rj["status"] = "not evaluated";
       runs_json.push_back(rj);
       continue;
     }
-    const nlohmann::json e = read_json(eval_path.string());
+    const nlohmann::json e = current ? std::move(*current) : read_json((fs::path(r.dir) / "eval.json").string());
     ++g.evaluated;
     g.run_dirs.push_back(r.dir);
     a.ate_t.push_back(json_number(e, {"ate", "trans_m", "rmse"}));

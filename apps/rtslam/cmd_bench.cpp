@@ -17,6 +17,7 @@
 #include "commands.hpp"
 #include "prefetch_option.hpp"
 #include "rtslam/core/error.hpp"
+#include "rtslam/filter/kernels.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/writers.hpp"
 #include "rtslam/pipeline/demo_config.hpp"
@@ -178,8 +179,9 @@ void run_pipeline_bench(const BenchOptions& bo) {
   const double bound_s = std::max(filter_cpu_s, cpu_s / cores);
   std::cout << fmt::format(
       "  CPU: filter thread {:.2f} s, other threads (decoding) {:.2f} s: on {} idle cores at "
-      "most {:.0f} images/s\n",
-      filter_cpu_s, std::max(0.0, cpu_s - filter_cpu_s), cores, static_cast<double>(images) / std::max(bound_s, 1e-9));
+      "most {:.0f} images/s; filter kernels {} (RTSLAM_KERNEL_ISA)\n",
+      filter_cpu_s, std::max(0.0, cpu_s - filter_cpu_s), cores, static_cast<double>(images) / std::max(bound_s, 1e-9),
+      filter::to_string(filter::kernel_isa()));
   if (!bo.json.empty()) {
     nlohmann::json j;
     j["dataset"] = ds.name;
@@ -202,6 +204,7 @@ void run_pipeline_bench(const BenchOptions& bo) {
     j["input_wait_s"] = source.in_next_s;
     j["cpu_s"] = cpu_s;
     j["filter_thread_cpu_s"] = filter_cpu_s;
+    j["kernel_isa"] = filter::to_string(filter::kernel_isa());
     j["prefetch_threads"] = threads;
     j["load_average"] = {load_before, load_after};
     io::write_summary_json(bo.json, j);

@@ -150,12 +150,60 @@ void BM_CorrectFragmented(benchmark::State& st) {
   rtslam::filter::set_kernel_isa(rtslam::filter::best_kernel_isa());
 }
 BENCHMARK(BM_CorrectFragmented)
+    ->Args({1, 3})
+    ->Args({22, 3})
     ->Args({1, 2})
     ->Args({22, 2})
     ->Args({1, 1})
     ->Args({22, 1})
     ->Args({1, 0})
     ->Args({22, 0})
+    ->Unit(benchmark::kMicrosecond);
+
+// The downdate kernel alone, P ← P − W Wᵀ over n = 496 active rows of a 600-row covariance, m = 50 (25 landmarks),
+// per instruction set (range 1; clamped to what the CPU has, see the label). range 0: 0 = the rows consecutive,
+// 1 = runs of 7 and 3 rows (AHP and Euclidean landmarks) separated by one-row holes, so that most tiles straddle
+// a hole. `per_fma` is the time per multiply-add of the lower triangle (n(n + 1)/2 · m).
+void BM_Downdate(benchmark::State& st) {
+  namespace k = rtslam::filter::kernels;
+  const auto isa = rtslam::filter::set_kernel_isa(static_cast<rtslam::filter::KernelIsa>(st.range(1)));
+  constexpr int kCapacity = 600, kRows = 496, kM = 50;
+  std::vector<int> rows;
+  for (int r = 0, run = 0; static_cast<int>(rows.size()) < kRows; ++run) {
+    const int length = st.range(0) == 0 ? kRows : (run % 2 == 0 ? 7 : 3);
+    for (int i = 0; i < length && static_cast<int>(rows.size()) < kRows; ++i) rows.push_back(r++);
+    ++r;  // a hole (unused when the rows are consecutive: one run)
+  }
+  std::vector<k::LaneGroup> groups;
+  for (int g = 0; g < (kRows + k::kPanelRows - 1) / k::kPanelRows * 2; ++g) {
+    k::LaneGroup lg;
+    for (int lane = 0; lane < k::kGroupLanes && g * k::kGroupLanes + lane < kRows; ++lane) {
+      const int i = g * k::kGroupLanes + lane;
+      const auto row = static_cast<size_t>(i);
+      if (lg.segments == 0 || rows[row - 1] != rows[row] - 1) lg.base[lg.segments++] = rows[row] - lane;
+      lg.mask[lg.segments - 1] |= 1u << lane;
+    }
+    groups.push_back(lg);
+  }
+  rtslam::Rng rng(3);
+  std::vector<double> W(static_cast<size_t>(k::packed_size(kRows, kM)), 0.0);
+  for (int i = 0; i < kRows; ++i)
+    for (int c = 0; c < kM; ++c)
+      W[static_cast<size_t>((i / k::kPanelRows * kM + c) * k::kPanelRows + i % k::kPanelRows)] = 1e-3 * rtslam::randn(rng);
+  MatrixXd P = MatrixXd::Identity(kCapacity, kCapacity);
+  const k::ActiveRows active{rows.data(), groups.data(), kRows};
+  for (auto _ : st) {
+    k::downdate_mirrored(P.data(), P.outerStride(), active, W.data(), kM, kM);
+    benchmark::ClobberMemory();
+  }
+  st.counters["per_fma"] = benchmark::Counter(kRows * (kRows + 1) / 2.0 * kM,
+                                              benchmark::Counter::kIsIterationInvariantRate |
+                                                  benchmark::Counter::kInvert);
+  st.SetLabel(rtslam::filter::to_string(isa));
+  rtslam::filter::set_kernel_isa(rtslam::filter::best_kernel_isa());
+}
+BENCHMARK(BM_Downdate)
+    ->ArgsProduct({{0, 1}, {3, 2, 1, 0}})
     ->Unit(benchmark::kMicrosecond);
 
 // The corrections of one image of the high-dynamic sequence: the one-point RANSAC support set (22 landmarks), three
@@ -179,7 +227,7 @@ void BM_FrameCorrections(benchmark::State& st) {
   st.SetLabel(rtslam::filter::to_string(isa));
   rtslam::filter::set_kernel_isa(rtslam::filter::best_kernel_isa());
 }
-BENCHMARK(BM_FrameCorrections)->Arg(2)->Arg(1)->Arg(0)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FrameCorrections)->Arg(3)->Arg(2)->Arg(1)->Arg(0)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
+#include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
 
 namespace rtslam::filter::kernels {
@@ -71,11 +72,12 @@ MatrixXd unpack(const std::vector<double>& packed, int n, int m, int stride) {
   return W;
 }
 
-// Runs f under each available instruction set and returns the results in KernelIsa order (generic, avx2, avx2_fma).
+// Runs f under each available instruction set and returns the results in KernelIsa order (generic, avx2, avx2_fma,
+// avx512).
 template <class F>
 auto under_each_isa(F f) {
   std::vector<decltype(f())> out;
-  for (const KernelIsa isa : {KernelIsa::generic, KernelIsa::avx2, KernelIsa::avx2_fma}) {
+  for (const KernelIsa isa : {KernelIsa::generic, KernelIsa::avx2, KernelIsa::avx2_fma, KernelIsa::avx512}) {
     if (static_cast<int>(isa) <= static_cast<int>(best_kernel_isa())) out.push_back((set_kernel_isa(isa), f()));
   }
   set_kernel_isa(best_kernel_isa());
@@ -145,11 +147,14 @@ TEST(FilterKernels, DowndateMatchesDenseOnActiveRowsAndLeavesHolesUntouched) {
     if (results.size() >= 2) {
       EXPECT_TRUE(bit_identical(results[0], results[1])) << "m = " << m;
     }
-    if (results.size() == 3) {  // fused multiply-adds: the same sums, rounded once per term
+    if (results.size() >= 3) {  // fused multiply-adds: the same sums, rounded once per term
       EXPECT_LT(relative_difference(results[2], results[0]), 1e-14) << "m = " << m;
       if (m == 44) {
         EXPECT_FALSE(bit_identical(results[2], results[0])) << "the FMA variant is not fused";
       }
+    }
+    if (results.size() == 4) {  // AVX-512 tiles: the AVX2 + FMA variant's operations, element by element
+      EXPECT_TRUE(bit_identical(results[3], results[2])) << "m = " << m;
     }
   }
 }
@@ -194,7 +199,10 @@ TEST(FilterKernels, PHtSolveAndProductMatchDenseAndAgreeAcrossInstructionSets) {
   if (results.size() >= 2) {
     for (size_t k = 0; k < 3; ++k) EXPECT_TRUE(bit_identical(results[0][k], results[1][k])) << k;
   }
-  if (results.size() == 3) {
+  if (results.size() == 4) {  // the AVX-512 level uses the AVX2 + FMA versions of these
+    for (size_t k = 0; k < 3; ++k) EXPECT_TRUE(bit_identical(results[3][k], results[2][k])) << k;
+  }
+  if (results.size() >= 3) {
     for (size_t k = 0; k < 3; ++k) {
       EXPECT_LT(relative_difference(results[2][k], results[0][k]), 1e-13) << k;
       EXPECT_FALSE(bit_identical(results[2][k], results[0][k])) << k << ": the FMA variant is not fused";
@@ -203,14 +211,34 @@ TEST(FilterKernels, PHtSolveAndProductMatchDenseAndAgreeAcrossInstructionSets) {
 }
 
 TEST(FilterKernels, InstructionSetIsClampedToWhatTheCpuSupports) {
-  EXPECT_EQ(set_kernel_isa(KernelIsa::avx2_fma), best_kernel_isa());
+  EXPECT_EQ(set_kernel_isa(KernelIsa::avx512), best_kernel_isa());
   EXPECT_EQ(kernel_isa(), best_kernel_isa());
+  const KernelIsa fma = set_kernel_isa(KernelIsa::avx2_fma);
+  EXPECT_EQ(fma, std::min(best_kernel_isa(), KernelIsa::avx2_fma));
+  EXPECT_EQ(kernel_isa(), fma);
   const KernelIsa plain = set_kernel_isa(KernelIsa::avx2);
   EXPECT_EQ(plain, best_kernel_isa() == KernelIsa::generic ? KernelIsa::generic : KernelIsa::avx2);
   EXPECT_EQ(kernel_isa(), plain);
   EXPECT_EQ(set_kernel_isa(KernelIsa::generic), KernelIsa::generic);
   EXPECT_STREQ(to_string(KernelIsa::avx2_fma), "avx2_fma");
+  EXPECT_STREQ(to_string(KernelIsa::avx512), "avx512");
   set_kernel_isa(best_kernel_isa());
+}
+
+TEST(FilterKernels, TheEnvironmentVariableSelectsALevelClampedToTheCpuAndNamesABadValue) {
+  for (const KernelIsa isa : {KernelIsa::generic, KernelIsa::avx2, KernelIsa::avx2_fma, KernelIsa::avx512}) {
+    EXPECT_EQ(parse_kernel_isa(to_string(isa)), isa);
+    EXPECT_EQ(kernel_isa_from_env(to_string(isa)), std::min(isa, best_kernel_isa())) << to_string(isa);
+  }
+  EXPECT_EQ(kernel_isa_from_env(nullptr), best_kernel_isa());
+  EXPECT_EQ(kernel_isa_from_env(""), best_kernel_isa());
+  EXPECT_FALSE(parse_kernel_isa("AVX2"));
+  try {
+    kernel_isa_from_env("sse9");
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("RTSLAM_KERNEL_ISA: 'sse9' is not"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

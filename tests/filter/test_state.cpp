@@ -613,7 +613,7 @@ TEST(State, PendingDowndateBeyondItsCapacityIsAppliedFirst) {
   expect_matches_dense(s, d, 1e-9);
 }
 
-TEST(State, GenericAndAvx2KernelsGiveBitIdenticalStatesAndFmaTheSameUpToRounding) {
+TEST(State, GenericAndAvx2KernelsGiveBitIdenticalStatesFmaTheSameUpToRoundingAndAvx512TheFmaOnes) {
   // The kernels' instruction sets perform the same operations in the same order (filter/kernels.hpp).
   auto run = [](KernelIsa isa) {
     set_kernel_isa(isa);
@@ -638,10 +638,15 @@ TEST(State, GenericAndAvx2KernelsGiveBitIdenticalStatesAndFmaTheSameUpToRounding
   EXPECT_EQ(std::memcmp(generic.first.data(), avx2.first.data(), sizeof(double) * generic.first.size()), 0);
   EXPECT_EQ(std::memcmp(generic.second.data(), avx2.second.data(), sizeof(double) * generic.second.size()), 0);
   // With fused multiply-adds (filter/kernels.hpp): the same state up to rounding.
-  if (best_kernel_isa() != KernelIsa::avx2_fma) return;
+  if (best_kernel_isa() < KernelIsa::avx2_fma) return;
   const auto fma = run(KernelIsa::avx2_fma);
   EXPECT_LT((fma.first - generic.first).cwiseAbs().maxCoeff(), 1e-12 * generic.first.cwiseAbs().maxCoeff());
   EXPECT_LT((fma.second - generic.second).cwiseAbs().maxCoeff(), 1e-12 * generic.second.cwiseAbs().maxCoeff());
+  // AVX-512 downdate tiles: the AVX2 + FMA variant's operations, so its state bit for bit.
+  if (best_kernel_isa() < KernelIsa::avx512) return;
+  const auto avx512 = run(KernelIsa::avx512);
+  EXPECT_EQ(std::memcmp(fma.first.data(), avx512.first.data(), sizeof(double) * fma.first.size()), 0);
+  EXPECT_EQ(std::memcmp(fma.second.data(), avx512.second.data(), sizeof(double) * fma.second.size()), 0);
 }
 
 }  // namespace

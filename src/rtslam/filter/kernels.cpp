@@ -2,6 +2,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "rtslam/core/error.hpp"
 
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -17,14 +23,15 @@ KernelIsa detect() {
   // __builtin_cpu_supports also checks that the OS saves the AVX registers.
   __builtin_cpu_init();
   if (!__builtin_cpu_supports("avx2")) return KernelIsa::generic;
-  return __builtin_cpu_supports("fma") ? KernelIsa::avx2_fma : KernelIsa::avx2;
+  if (!__builtin_cpu_supports("fma")) return KernelIsa::avx2;
+  return __builtin_cpu_supports("avx512f") ? KernelIsa::avx512 : KernelIsa::avx2_fma;
 #else
   return KernelIsa::generic;
 #endif
 }
 
 std::atomic<KernelIsa>& current() {
-  static std::atomic<KernelIsa> isa{best_kernel_isa()};
+  static std::atomic<KernelIsa> isa{kernel_isa_from_env(std::getenv("RTSLAM_KERNEL_ISA"))};
   return isa;
 }
 
@@ -33,6 +40,24 @@ std::atomic<KernelIsa>& current() {
 KernelIsa best_kernel_isa() {
   static const KernelIsa best = detect();
   return best;
+}
+
+std::optional<KernelIsa> parse_kernel_isa(std::string_view name) {
+  for (const KernelIsa isa : {KernelIsa::generic, KernelIsa::avx2, KernelIsa::avx2_fma, KernelIsa::avx512}) {
+    if (name == to_string(isa)) return isa;
+  }
+  return std::nullopt;
+}
+
+KernelIsa kernel_isa_from_env(const char* value) {
+  if (value == nullptr || *value == '\0') return best_kernel_isa();
+  const auto isa = parse_kernel_isa(value);
+  if (!isa) {
+    throw ConfigError(fmt::format("RTSLAM_KERNEL_ISA: '{}' is not an instruction set of the filter kernels (generic, "
+                                  "avx2, avx2_fma or avx512)",
+                                  value));
+  }
+  return static_cast<int>(*isa) < static_cast<int>(best_kernel_isa()) ? *isa : best_kernel_isa();
 }
 
 KernelIsa kernel_isa() { return current().load(std::memory_order_relaxed); }
@@ -47,8 +72,8 @@ const char* to_string(KernelIsa isa) {
   switch (isa) {
     case KernelIsa::generic: return "generic";
     case KernelIsa::avx2: return "avx2";
-    case KernelIsa::avx2_fma:
-      return "avx2_fma";
+    case KernelIsa::avx2_fma: return "avx2_fma";
+    case KernelIsa::avx512: return "avx512";
   }
   return "unknown";
 }
@@ -266,6 +291,23 @@ struct TileColumns {
   std::int64_t col_row[kTileCols] = {0, 0, 0, 0};  // covariance rows (lanes past n repeat j0's: never written)
 };
 
+// The columns s0 .. s0 + 7 of a strip (s0 a multiple of kP) as one or two halves of kTileCols; returns the halves.
+RTSLAM_FILTER_AVX2 inline int strip_columns(ActiveRows active, const double* W, int w_stride, int s0,
+                                            TileColumns (&tc)[2]) {
+  static_assert(2 * kTileCols == kP, "a strip is one panel wide");
+  const int n = active.n;
+  int halves = 0;
+  for (int j0 = s0; j0 < n && j0 < s0 + kP; j0 += kTileCols) {
+    TileColumns& t = tc[halves++];
+    t.j0 = j0;
+    t.wj = W + static_cast<std::int64_t>(j0 / kP) * w_stride * kP + j0 % kP;
+    t.gc = &active.groups[j0 / kGroupLanes];
+    t.contiguous = full_group(*t.gc);
+    for (int c = 0; c < kTileCols; ++c) t.col_row[c] = j0 + c < n ? active.rows[j0 + c] : active.rows[j0];
+  }
+  return halves;
+}
+
 // The AVX2 kernels in two variants (kernels_avx2.inc): avx2:: with separate multiplies and adds, the generic
 // versions' results bit for bit; avx2_fma:: with fused multiply-adds. The FMA variant gets its own target so that
 // the plain one has no FMA to fuse with, and the module is compiled with -ffp-contract=off (filter/CMakeLists.txt)
@@ -289,6 +331,117 @@ struct TileColumns {
 #undef RTSLAM_KERNEL_TARGET
 #undef RTSLAM_MADD
 #undef RTSLAM_NMSUB
+
+// The downdate in AVX-512 (KernelIsa::avx512): a panel's 8 rows are one register, and a tile is two panels (16
+// rows) against a whole strip (8 columns): 16 accumulators, 10 loads for 16 fused multiply-adds, where the AVX2 tile
+// (8 rows × 4 columns) needs 6 loads for 8 and, with two FMA units, stays at half the width. Every element is the
+// AVX2 + FMA variant's sum, fused in the same k order from zero, and is written by that variant's downdate_write:
+// the results are the avx2_fma ones, bit for bit. The other kernels (about a fifth of the downdate's time together)
+// use the avx2_fma versions.
+#define RTSLAM_FILTER_AVX512 __attribute__((target("avx512f,avx2,fma")))
+// GCC 12's AVX-512 intrinsics pass an "undefined" register as the unused source of their unmasked forms and then warn
+// that it "may be used uninitialized" (GCC bug 105593, fixed in GCC 13).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+namespace avx512 {
+
+// Writes panel p's tiles of the strip from its 8 column accumulators (column c: lanes = the panel's rows).
+RTSLAM_FILTER_AVX512 inline void write_strip_panel(double* P, std::int64_t ldP, ActiveRows active,
+                                                   const TileColumns (&tc)[2], int halves, int p,
+                                                   const __m512d (&acc)[kP]) {
+  const LaneGroup& gl = active.groups[2 * p];
+  const LaneGroup& gh = active.groups[2 * p + 1];
+  if (halves == 2 && p != tc[0].j0 / kP && tc[0].contiguous && tc[1].contiguous &&
+      tc[1].col_row[0] == tc[0].col_row[0] + kTileCols && full_group(gl) && full_group(gh) &&
+      gh.base[0] == gl.base[0] + kGroupLanes) {
+    // 8 consecutive rows below the diagonal against 8 consecutive columns (most tiles): P(rows, cols) −= acc in
+    // whole registers, then the 8 × 8 transpose onto P(cols, rows), one register per row.
+    const std::int64_t pi = gl.base[0];
+    const std::int64_t pj = tc[0].col_row[0];
+    __m512d v[kP];
+    for (int c = 0; c < kP; ++c) {
+      double* col = P + (pj + c) * ldP + pi;
+      v[c] = _mm512_sub_pd(_mm512_loadu_pd(col), acc[c]);
+      _mm512_storeu_pd(col, v[c]);
+    }
+    __m512d t[kP], u[kP];
+    for (int c = 0; c < kP; c += 2) {
+      t[c] = _mm512_unpacklo_pd(v[c], v[c + 1]);
+      t[c + 1] = _mm512_unpackhi_pd(v[c], v[c + 1]);
+    }
+    for (int q = 0; q < kP; q += 4) {
+      u[q] = _mm512_shuffle_f64x2(t[q], t[q + 2], 0x88);
+      u[q + 1] = _mm512_shuffle_f64x2(t[q + 1], t[q + 3], 0x88);
+      u[q + 2] = _mm512_shuffle_f64x2(t[q], t[q + 2], 0xDD);
+      u[q + 3] = _mm512_shuffle_f64x2(t[q + 1], t[q + 3], 0xDD);
+    }
+    double* m0 = P + pi * ldP + pj;  // P(cols, row pi)
+    for (int r = 0; r < 4; ++r) {
+      _mm512_storeu_pd(m0 + r * ldP, _mm512_shuffle_f64x2(u[r], u[r + 4], 0x88));
+      _mm512_storeu_pd(m0 + (r + 4) * ldP, _mm512_shuffle_f64x2(u[r], u[r + 4], 0xDD));
+    }
+    return;
+  }
+  for (int h = 0; h < halves; ++h) {
+    __m256d a[kTileCols][2];
+    for (int c = 0; c < kTileCols; ++c) {
+      a[c][0] = _mm512_castpd512_pd256(acc[h * kTileCols + c]);
+      a[c][1] = _mm512_extractf64x4_pd(acc[h * kTileCols + c], 1);
+    }
+    avx2_fma::downdate_write(P, ldP, active, tc[h], p, a);
+  }
+}
+
+RTSLAM_FILTER_AVX512 void downdate_avx512(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m,
+                                          int w_stride) {
+  const int n = active.n;
+  const int np = panel_count(n);
+  for (int s0 = 0; s0 < n; s0 += kP) {
+    TileColumns tc[2];
+    const int halves = strip_columns(active, W, w_stride, s0, tc);
+    // W(s0 + c, k) for the strip's 8 columns (packed rows past n are zero, and only the halves are written).
+    const double* wj = W + static_cast<std::int64_t>(s0 / kP) * w_stride * kP;
+    int p = s0 / kP;
+    for (; p + 1 < np; p += 2) {
+      const double* wa = W + static_cast<std::int64_t>(p) * w_stride * kP;
+      const double* wb = wa + static_cast<std::int64_t>(w_stride) * kP;
+      __m512d a[kP], b[kP];
+      for (int c = 0; c < kP; ++c) a[c] = b[c] = _mm512_setzero_pd();
+      for (int k = 0; k < m; ++k) {
+        const __m512d xa = _mm512_loadu_pd(wa + k * kP);
+        const __m512d xb = _mm512_loadu_pd(wb + k * kP);
+        const double* y = wj + k * kP;
+        for (int c = 0; c < kP; ++c) {
+          const __m512d yc = _mm512_set1_pd(y[c]);
+          a[c] = _mm512_fmadd_pd(xa, yc, a[c]);
+          b[c] = _mm512_fmadd_pd(xb, yc, b[c]);
+        }
+      }
+      write_strip_panel(P, ldP, active, tc, halves, p, a);
+      write_strip_panel(P, ldP, active, tc, halves, p + 1, b);
+    }
+    if (p < np) {  // an odd panel left: one panel against the strip
+      const double* wa = W + static_cast<std::int64_t>(p) * w_stride * kP;
+      __m512d a[kP];
+      for (int c = 0; c < kP; ++c) a[c] = _mm512_setzero_pd();
+      for (int k = 0; k < m; ++k) {
+        const __m512d xa = _mm512_loadu_pd(wa + k * kP);
+        const double* y = wj + k * kP;
+        for (int c = 0; c < kP; ++c) a[c] = _mm512_fmadd_pd(xa, _mm512_set1_pd(y[c]), a[c]);
+      }
+      write_strip_panel(P, ldP, active, tc, halves, p, a);
+    }
+  }
+  _mm256_zeroupper();
+}
+
+}  // namespace avx512
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#undef RTSLAM_FILTER_AVX512
 #undef RTSLAM_FILTER_AVX2
 
 #endif  // __x86_64__
@@ -299,6 +452,7 @@ void add_P_Ht(ConstMatrixView P, ActiveRows active, int c0, const int* cols, int
               int k0, int k1, double* W, int m) {
 #if defined(__x86_64__)
   switch (kernel_isa()) {
+    case KernelIsa::avx512:
     case KernelIsa::avx2_fma:
       return avx2_fma::add_P_Ht_avx2(P, active, c0, cols, ncols, H, h0, k0, k1, W, m);
     case KernelIsa::avx2:
@@ -313,6 +467,7 @@ void add_P_Ht(ConstMatrixView P, ActiveRows active, int c0, const int* cols, int
 void solve_lower_transposed(double* W, int n, int m, ConstMatrixView L) {
 #if defined(__x86_64__)
   switch (kernel_isa()) {
+    case KernelIsa::avx512:
     case KernelIsa::avx2_fma:
       return avx2_fma::solve_avx2(W, n, m, L);
     case KernelIsa::avx2:
@@ -327,6 +482,7 @@ void solve_lower_transposed(double* W, int n, int m, ConstMatrixView L) {
 void subtract_product(double* W, int n, int m, const double* U, int mu, int u_stride, ConstMatrixView G) {
 #if defined(__x86_64__)
   switch (kernel_isa()) {
+    case KernelIsa::avx512:
     case KernelIsa::avx2_fma:
       return avx2_fma::subtract_product_avx2(W, n, m, U, mu, u_stride, G);
     case KernelIsa::avx2:
@@ -341,6 +497,8 @@ void subtract_product(double* W, int n, int m, const double* U, int mu, int u_st
 void downdate_mirrored(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m, int w_stride) {
 #if defined(__x86_64__)
   switch (kernel_isa()) {
+    case KernelIsa::avx512:
+      return avx512::downdate_avx512(P, ldP, active, W, m, w_stride);
     case KernelIsa::avx2_fma:
       return avx2_fma::downdate_avx2(P, ldP, active, W, m, w_stride);
     case KernelIsa::avx2:

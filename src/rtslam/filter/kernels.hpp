@@ -14,21 +14,34 @@
 // order (separate multiply and add), so their results are bit-identical; tests run both and compare. The AVX2 + FMA
 // versions (the default where the CPU has FMA: every AVX2 CPU from Intel and AMD) do the same operations in the
 // same order with each multiply-add fused, one rounding instead of two: their results differ from the others' in
-// the last bits (tests bound the difference), and a run is still deterministic on one machine.
+// the last bits (tests bound the difference), and a run is still deterministic on one machine. Where the CPU has
+// AVX-512 (KernelIsa::avx512: Intel Xeon since Skylake-SP, AMD Zen 4 and later), the downdate takes 16 rows × 8
+// columns per tile in 512-bit registers, with the AVX2 + FMA variant's operations on every element: the same results,
+// bit for bit (tested), about twice the AVX2 tile's speed; the other kernels are the AVX2 + FMA ones.
 #include <cstdint>
+#include <optional>
+#include <string_view>
 
 namespace rtslam::filter {
 
-enum class KernelIsa { generic = 0, avx2 = 1, avx2_fma = 2 };
+enum class KernelIsa { generic = 0, avx2 = 1, avx2_fma = 2, avx512 = 3 };
 
 /// The best instruction set this CPU (and build) supports.
 KernelIsa best_kernel_isa();
-/// The instruction set the kernels use now (process-wide; starts at best_kernel_isa()).
+/// The instruction set the kernels use now (process-wide). It starts at best_kernel_isa(), or at the level the
+/// environment variable RTSLAM_KERNEL_ISA names (generic, avx2, avx2_fma, avx512; clamped to best_kernel_isa()):
+/// `RTSLAM_KERNEL_ISA=generic` gives results that do not depend on the CPU, and a level can be compared with
+/// another. A value that names no level is a ConfigError, at the first filter operation.
 KernelIsa kernel_isa();
+/// The level named (as to_string() writes it), or none.
+std::optional<KernelIsa> parse_kernel_isa(std::string_view name);
+/// The starting level for the value of RTSLAM_KERNEL_ISA (null or empty: best_kernel_isa()); ConfigError naming the
+/// variable when it names no level.
+KernelIsa kernel_isa_from_env(const char* value);
 /// Selects an instruction set, clamped to best_kernel_isa(); returns the one in use. Tests and benchmarks lower it
 /// to exercise the generic path; do not call it while other threads run filter code.
 KernelIsa set_kernel_isa(KernelIsa isa);
-/// "generic", "avx2" or "avx2_fma".
+/// "generic", "avx2", "avx2_fma" or "avx512".
 const char* to_string(KernelIsa isa);
 
 namespace kernels {

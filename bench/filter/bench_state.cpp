@@ -187,9 +187,12 @@ void BM_Downdate(benchmark::State& st) {
   }
   rtslam::Rng rng(3);
   std::vector<double> W(static_cast<size_t>(k::packed_size(kRows, kM)), 0.0);
-  for (int i = 0; i < kRows; ++i)
-    for (int c = 0; c < kM; ++c)
-      W[static_cast<size_t>((i / k::kPanelRows * kM + c) * k::kPanelRows + i % k::kPanelRows)] = 1e-3 * rtslam::randn(rng);
+  for (int i = 0; i < kRows; ++i) {
+    for (int c = 0; c < kM; ++c) {
+      const auto at = static_cast<size_t>((i / k::kPanelRows * kM + c) * k::kPanelRows + i % k::kPanelRows);
+      W[at] = 1e-3 * rtslam::randn(rng);
+    }
+  }
   MatrixXd P = MatrixXd::Identity(kCapacity, kCapacity);
   const k::ActiveRows active{rows.data(), groups.data(), kRows};
   for (auto _ : st) {

@@ -200,6 +200,12 @@ TEST(AlignmentGeometry, CollinearPositionsAreRefusedAndASpreadTrajectoryPasses) 
   }
   EXPECT_THROW(check_alignment_geometry(spread, line, Alignment::Sim3), DataError);
   EXPECT_THROW(check_alignment_geometry(noisy_line, spread, Alignment::Se3), DataError);
+  // The way out is named for the CLI and for Python (whose users have no `--align` flag).
+  try {
+    check_alignment_geometry(spread, line, Alignment::Sim3);
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("`--align origin`, Python align=\"origin\""), std::string::npos) << e.what();
+  }
   EXPECT_NO_THROW(check_alignment_geometry(spread, spread, Alignment::Sim3));
   EXPECT_NO_THROW(check_alignment_geometry(line, line, Alignment::PosYaw));
 }

@@ -288,6 +288,30 @@ TEST(Association, WithoutTimestampsIsByIndexAndNeedsEqualLengths) {
   EXPECT_THROW(associate(far, gt), DataError);
 }
 
+TEST(Association, AnEmptyTrajectoryIsNamedAsEmpty) {
+  // It said "no matching timestamps", which sent users looking for a time offset.
+  Trajectory gt = test::wavy_trajectory(10);
+  gt.source = "gt.txt";
+  Trajectory empty;
+  empty.source = "out/trajectory.txt";
+  for (const bool interpolate : {false, true}) {
+    for (const bool estimate_empty : {true, false}) {
+      try {
+        associate(estimate_empty ? empty : gt, estimate_empty ? gt : empty, {.interpolate = interpolate});
+        ADD_FAILURE() << "no error";
+      } catch (const DataError& e) {
+        EXPECT_NE(std::string(e.what()).find("out/trajectory.txt holds no pose (an empty trajectory)"),
+                  std::string::npos)
+            << e.what();
+      }
+    }
+  }
+  empty.has_timestamps = false;
+  Trajectory gt_untimed = gt;
+  gt_untimed.has_timestamps = false;
+  EXPECT_THROW(associate(empty, gt_untimed), DataError);
+}
+
 TEST(Evaluate, TrajectoriesWithoutTimestampsHaveNoDuration) {
   // KITTI poses are numbered, not timed: their "duration" was the index span read as nanoseconds (0.00 s printed,
   // 1.99e-07 in the JSON).

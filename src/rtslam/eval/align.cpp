@@ -140,7 +140,8 @@ void check_alignment_geometry(const std::vector<Eigen::Vector3d>& est, const std
     if (!(ev[1] > kMinAlignmentSpreadRatio * ev[2])) {
       throw DataError(fmt::format(
           "{} alignment: the {} positions lie on a line (spread {:.3g} m along it, {:.3g} m across): the rotation "
-          "about it is undetermined; use --align origin or none, or a longer trajectory",
+          "about it is undetermined; use the origin or none alignment (`--align origin`, Python align=\"origin\"), "
+          "or a longer trajectory",
           to_string(method), set == &gt ? "ground-truth" : "estimated", ev[2], ev[1]));
     }
   }

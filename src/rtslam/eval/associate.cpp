@@ -20,6 +20,12 @@ std::pair<Trajectory, Trajectory> associate(const Trajectory& est, const Traject
                                             const AssociationOptions& options) {
   if (!(options.max_diff_s >= 0.0))
     throw ConfigError(fmt::format("association: max time difference must be >= 0 s, got {}", options.max_diff_s));
+  // An empty file (a run that wrote no pose, a truncated export) says so, not "no matching timestamps".
+  for (const auto& [t, what] : {std::pair{&est, "estimate"}, std::pair{&gt, "ground truth"}}) {
+    if (t->poses.empty()) {
+      throw DataError(fmt::format("association: {} holds no pose (an empty trajectory)", name_of(*t, what)));
+    }
+  }
   Trajectory est_out;
   Trajectory gt_out;
   est_out.source = est.source;

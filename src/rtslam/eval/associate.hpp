@@ -22,8 +22,9 @@ struct AssociationOptions {
   double max_gap_s = 0.1;    // interpolate only between ground-truth poses at most this far apart
 };
 
-/// Associated copies {est, gt}: same length, pose i of one matches pose i of the other. Throws DataError when no
-/// pose matches (naming both sources) or when index association meets different lengths.
+/// Associated copies {est, gt}: same length, pose i of one matches pose i of the other. Throws DataError when either
+/// is empty (naming it), when no pose matches (naming both sources) or when index association meets different
+/// lengths.
 std::pair<Trajectory, Trajectory> associate(const Trajectory& est, const Trajectory& gt,
                                             const AssociationOptions& options = {});
 

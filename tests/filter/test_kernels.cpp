@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -56,10 +57,11 @@ MatrixXd random_matrix(int r, int c, Rng& rng) {
   return A;
 }
 
-// Packs the rows of a dense n × m matrix with the given panel stride.
-std::vector<double> pack(const MatrixXd& W, int stride) {
+// Packs the rows of a dense n × m matrix with the given panel stride; the padding (rows past n, columns past m) is
+// `pad`.
+std::vector<double> pack(const MatrixXd& W, int stride, double pad = 0.0) {
   const int n = static_cast<int>(W.rows());
-  std::vector<double> out(static_cast<size_t>(packed_size(n, stride)), 0.0);
+  std::vector<double> out(static_cast<size_t>(packed_size(n, stride)), pad);
   for (int i = 0; i < n; ++i)
     for (int k = 0; k < W.cols(); ++k) out[static_cast<size_t>((i / kP * stride + k) * kP + i % kP)] = W(i, k);
   return out;
@@ -113,49 +115,102 @@ bool has_both_tile_kinds(const Layout& l) {
 
 TEST(FilterKernels, DowndateMatchesDenseOnActiveRowsAndLeavesHolesUntouched) {
   Rng rng(5);
-  const Layout l = make_layout(kRuns);
-  ASSERT_TRUE(has_both_tile_kinds(l));
-  const int n = l.active().n;
-  MatrixXd P0 = random_matrix(kCap, kCap, rng);
-  P0 = (P0 + P0.transpose()).eval();
-  for (const int m : {1, 2, 7, 44}) {
-    const MatrixXd W = random_matrix(n, m, rng);
-    const int stride = m + 3;  // a pending factor's panels hold more columns than are used
-    const std::vector<double> packed = pack(W, stride);
-    const auto results = under_each_isa([&] {
-      MatrixXd P = P0;
-      downdate_mirrored(P.data(), P.outerStride(), l.active(), packed.data(), m, stride);
-      return P;
-    });
-    MatrixXd expected = P0;
-    for (int a = 0; a < n; ++a)
-      for (int b = 0; b < n; ++b) expected(l.rows[a], l.rows[b]) -= W.row(a).dot(W.row(b));
-    for (const MatrixXd& P : results) {
-      EXPECT_LT((P - expected).cwiseAbs().maxCoeff(), 1e-12) << "m = " << m;
-      EXPECT_TRUE(bit_identical(P, P.transpose())) << "m = " << m;
-      // Holes: rows and columns of no run are neither read into nor written.
-      for (int i = 0; i < kCap; ++i) {
-        const bool active_i = std::find(l.rows.begin(), l.rows.end(), i) != l.rows.end();
-        for (int j = 0; j < kCap; ++j) {
-          const bool active_j = std::find(l.rows.begin(), l.rows.end(), j) != l.rows.end();
-          if (!(active_i && active_j)) {
-            ASSERT_EQ(P(i, j), P0(i, j)) << i << "," << j;
+  // kRuns: 57 active rows (the last strip has 1 column); without the last run's last 3 rows, 54 (a last strip of 6
+  // columns, both halves, and the diagonal tile with columns past n).
+  std::vector<std::pair<int, int>> short_runs = kRuns;
+  short_runs.back().second -= 3;
+  for (int layout = 0; layout < 2; ++layout) {
+    const Layout l = make_layout(layout == 0 ? kRuns : short_runs);
+    if (layout == 0) {
+      ASSERT_TRUE(has_both_tile_kinds(l));
+    }
+    const int n = l.active().n;
+    MatrixXd P0 = random_matrix(kCap, kCap, rng);
+    P0 = (P0 + P0.transpose()).eval();
+    for (const int m : {1, 2, 7, 44}) {
+      const MatrixXd W = random_matrix(n, m, rng);
+      const int stride = m + 3;  // a pending factor's panels hold more columns than are used
+      // Padding NaN: the kernels compute with the lanes past n (whole registers) but must write none of them.
+      const std::vector<double> packed = pack(W, stride, std::numeric_limits<double>::quiet_NaN());
+      const auto results = under_each_isa([&] {
+        MatrixXd P = P0;
+        downdate_mirrored(P.data(), P.outerStride(), l.active(), packed.data(), m, stride);
+        return P;
+      });
+      MatrixXd expected = P0;
+      for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) expected(l.rows[a], l.rows[b]) -= W.row(a).dot(W.row(b));
+      for (const MatrixXd& P : results) {
+        ASSERT_TRUE(P.allFinite()) << "m = " << m;  // (maxCoeff may skip a NaN)
+        EXPECT_LT((P - expected).cwiseAbs().maxCoeff(), 1e-12) << "m = " << m;
+        EXPECT_TRUE(bit_identical(P, P.transpose())) << "m = " << m;
+        // Holes: rows and columns of no run are neither read into nor written.
+        for (int i = 0; i < kCap; ++i) {
+          const bool active_i = std::find(l.rows.begin(), l.rows.end(), i) != l.rows.end();
+          for (int j = 0; j < kCap; ++j) {
+            const bool active_j = std::find(l.rows.begin(), l.rows.end(), j) != l.rows.end();
+            if (!(active_i && active_j)) {
+              ASSERT_EQ(P(i, j), P0(i, j)) << i << "," << j;
+            }
           }
         }
       }
-    }
-    if (results.size() >= 2) {
-      EXPECT_TRUE(bit_identical(results[0], results[1])) << "m = " << m;
-    }
-    if (results.size() >= 3) {  // fused multiply-adds: the same sums, rounded once per term
-      EXPECT_LT(relative_difference(results[2], results[0]), 1e-14) << "m = " << m;
-      if (m == 44) {
-        EXPECT_FALSE(bit_identical(results[2], results[0])) << "the FMA variant is not fused";
+      if (results.size() >= 2) {
+        EXPECT_TRUE(bit_identical(results[0], results[1])) << "m = " << m;
+      }
+      if (results.size() >= 3) {  // fused multiply-adds: the same sums, rounded once per term
+        EXPECT_LT(relative_difference(results[2], results[0]), 1e-14) << "m = " << m;
+        if (m == 44) {
+          EXPECT_FALSE(bit_identical(results[2], results[0])) << "the FMA variant is not fused";
+        }
+      }
+      if (results.size() == 4) {  // AVX-512 tiles: the AVX2 + FMA variant's operations, element by element
+        EXPECT_TRUE(bit_identical(results[3], results[2])) << "m = " << m;
       }
     }
-    if (results.size() == 4) {  // AVX-512 tiles: the AVX2 + FMA variant's operations, element by element
-      EXPECT_TRUE(bit_identical(results[3], results[2])) << "m = " << m;
-    }
+  }
+}
+
+// The AVX-512 downdate on a map-sized layout (the landmarks' runs of 7 and 3 rows, long runs where blocks were
+// allocated back to back, one-row holes; 326 active rows of 360): every kind of its tiles occurs many times (both
+// panels of a pair plain, masked, mixed; the odd last panel; the diagonal ones), and each gives the avx2_fma bytes.
+TEST(FilterKernels, Avx512DowndateGivesTheFmaVariantsBytesOnAMapSizedLayout) {
+  if (best_kernel_isa() < KernelIsa::avx512) GTEST_SKIP() << "no AVX-512 on this CPU: " << to_string(best_kernel_isa());
+  std::vector<std::pair<int, int>> runs;
+  int next = 0;
+  for (int r = 0; next < 340; ++r) {
+    const int length = r % 5 == 4 ? 24 + r : (r % 2 == 0 ? 7 : 3);
+    runs.emplace_back(next, length);
+    next += length + 1;
+  }
+  runs.back().second -= next - 1 - 355;  // the last run ends at row 354
+  const Layout l = make_layout(runs);
+  const int n = l.active().n;
+  int plain_pairs = 0, masked = 0;
+  for (int p = 0; p < n / kP; ++p) {
+    const LaneGroup &gl = l.groups[static_cast<size_t>(2 * p)], &gh = l.groups[static_cast<size_t>(2 * p + 1)];
+    (gl.segments == 1 && gl.mask[0] == 0xF && gh.segments == 1 && gh.mask[0] == 0xF &&
+             gh.base[0] == gl.base[0] + kGroupLanes
+         ? plain_pairs
+         : masked)++;
+  }
+  ASSERT_GE(plain_pairs, 8);
+  ASSERT_GE(masked, 8);
+  Rng rng(9);
+  MatrixXd P0 = random_matrix(360, 360, rng);
+  P0 = (P0 + P0.transpose()).eval();
+  for (const int m : {3, 50}) {
+    const MatrixXd W = random_matrix(n, m, rng);
+    const std::vector<double> packed = pack(W, m + 1, std::numeric_limits<double>::quiet_NaN());
+    MatrixXd by_fma = P0, by_avx512 = P0;
+    set_kernel_isa(KernelIsa::avx2_fma);
+    downdate_mirrored(by_fma.data(), by_fma.outerStride(), l.active(), packed.data(), m, m + 1);
+    set_kernel_isa(KernelIsa::avx512);
+    downdate_mirrored(by_avx512.data(), by_avx512.outerStride(), l.active(), packed.data(), m, m + 1);
+    set_kernel_isa(best_kernel_isa());
+    ASSERT_TRUE(by_avx512.allFinite());
+    EXPECT_TRUE(bit_identical(by_avx512, by_fma)) << "m = " << m;
+    EXPECT_FALSE(bit_identical(by_avx512, P0));
   }
 }
 

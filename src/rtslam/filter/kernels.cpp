@@ -335,52 +335,115 @@ RTSLAM_FILTER_AVX2 inline int strip_columns(ActiveRows active, const double* W, 
 // The downdate in AVX-512 (KernelIsa::avx512): a panel's 8 rows are one register, and a tile is two panels (16
 // rows) against a whole strip (8 columns): 16 accumulators, 10 loads for 16 fused multiply-adds, where the AVX2 tile
 // (8 rows × 4 columns) needs 6 loads for 8 and, with two FMA units, stays at half the width. Every element is the
-// AVX2 + FMA variant's sum, fused in the same k order from zero, and is written by that variant's downdate_write:
-// the results are the avx2_fma ones, bit for bit. The other kernels (about a fifth of the downdate's time together)
-// use the avx2_fma versions.
+// AVX2 + FMA variant's sum, fused in the same k order from zero, and the write-back only subtracts it, so the
+// results are the avx2_fma ones, bit for bit. Tiles below the diagonal are written and mirrored in whole registers
+// (masked across holes in the active rows); the diagonal tiles go through avx2_fma::downdate_write. The other kernels (about a third of the downdate's time together) use the avx2_fma
+// versions.
 #define RTSLAM_FILTER_AVX512 __attribute__((target("avx512f,avx2,fma")))
 // GCC 12's AVX-512 intrinsics pass an "undefined" register as the unused source of their unmasked forms and then warn
-// that it "may be used uninitialized" (GCC bug 105593, fixed in GCC 13).
+// that it is (or "may be") used uninitialized (GCC bug 105593).
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 namespace avx512 {
 
+// The 8 lanes of a panel (or of a strip's 8 columns) as runs of consecutive covariance rows: lane L of run s is row
+// off[s] + L, for the lanes of mask[s] (lanes past the active rows are in none). Built from the two lane groups.
+struct PanelRuns {
+  int count = 0;
+  std::int64_t off[kP] = {};
+  __mmask8 mask[kP] = {};
+};
+
+inline PanelRuns panel_runs(const LaneGroup& lo, const LaneGroup& hi) {
+  PanelRuns r;
+  for (int h = 0; h < 2; ++h) {
+    const LaneGroup& g = h == 0 ? lo : hi;
+    for (int s = 0; s < g.segments; ++s) {
+      const std::int64_t off = g.base[s] - h * kGroupLanes;
+      const auto mask = static_cast<__mmask8>(g.mask[s] << (h * kGroupLanes));
+      if (r.count > 0 && r.off[r.count - 1] == off) {
+        r.mask[r.count - 1] = static_cast<__mmask8>(r.mask[r.count - 1] | mask);  // a run across the two groups
+      } else {
+        r.off[r.count] = off;
+        r.mask[r.count++] = mask;
+      }
+    }
+  }
+  return r;
+}
+
+// The lanes of v at base + run offsets (masked loads: the lanes of no run are zero, and nothing outside the runs
+// is read; AVX-512 masked accesses do not fault on masked-out lanes).
+RTSLAM_FILTER_AVX512 inline __m512d load_runs(const double* base, const PanelRuns& r) {
+  __m512d v = _mm512_setzero_pd();
+  for (int s = 0; s < r.count; ++s) v = _mm512_mask_loadu_pd(v, r.mask[s], base + r.off[s]);
+  return v;
+}
+
+RTSLAM_FILTER_AVX512 inline void store_runs(double* base, const PanelRuns& r, __m512d v) {
+  for (int s = 0; s < r.count; ++s) _mm512_mask_storeu_pd(base + r.off[s], r.mask[s], v);
+}
+
+// The 8 × 8 transpose: out[r] lane c = in[c] lane r.
+RTSLAM_FILTER_AVX512 inline void transpose8(const __m512d (&in)[kP], __m512d (&out)[kP]) {
+  __m512d t[kP], u[kP];
+  for (int c = 0; c < kP; c += 2) {
+    t[c] = _mm512_unpacklo_pd(in[c], in[c + 1]);
+    t[c + 1] = _mm512_unpackhi_pd(in[c], in[c + 1]);
+  }
+  for (int q = 0; q < kP; q += 4) {
+    u[q] = _mm512_shuffle_f64x2(t[q], t[q + 2], 0x88);
+    u[q + 1] = _mm512_shuffle_f64x2(t[q + 1], t[q + 3], 0x88);
+    u[q + 2] = _mm512_shuffle_f64x2(t[q], t[q + 2], 0xDD);
+    u[q + 3] = _mm512_shuffle_f64x2(t[q + 1], t[q + 3], 0xDD);
+  }
+  for (int r = 0; r < 4; ++r) {
+    out[r] = _mm512_shuffle_f64x2(u[r], u[r + 4], 0x88);
+    out[r + 4] = _mm512_shuffle_f64x2(u[r], u[r + 4], 0xDD);
+  }
+}
+
 // Writes panel p's tiles of the strip from its 8 column accumulators (column c: lanes = the panel's rows).
+// cols: the strip's columns as runs (used when halves == 2).
 RTSLAM_FILTER_AVX512 inline void write_strip_panel(double* P, std::int64_t ldP, ActiveRows active,
-                                                   const TileColumns (&tc)[2], int halves, int p,
-                                                   const __m512d (&acc)[kP]) {
+                                                   const TileColumns (&tc)[2], int halves, const PanelRuns& cols,
+                                                   int p, const __m512d (&acc)[kP]) {
   const LaneGroup& gl = active.groups[2 * p];
   const LaneGroup& gh = active.groups[2 * p + 1];
-  if (halves == 2 && p != tc[0].j0 / kP && tc[0].contiguous && tc[1].contiguous &&
-      tc[1].col_row[0] == tc[0].col_row[0] + kTileCols && full_group(gl) && full_group(gh) &&
-      gh.base[0] == gl.base[0] + kGroupLanes) {
-    // 8 consecutive rows below the diagonal against 8 consecutive columns (most tiles): P(rows, cols) −= acc in
-    // whole registers, then the 8 × 8 transpose onto P(cols, rows), one register per row.
-    const std::int64_t pi = gl.base[0];
-    const std::int64_t pj = tc[0].col_row[0];
-    __m512d v[kP];
+  if (halves == 2 && p != tc[0].j0 / kP) {
+    // Strictly below the diagonal, against the strip's 8 columns: P(rows, cols) −= acc a column at a time, then the
+    // 8 × 8 transpose onto P(cols, rows), a row at a time, in whole registers.
+    __m512d v[kP], t[kP];
+    if (tc[0].contiguous && tc[1].contiguous && tc[1].col_row[0] == tc[0].col_row[0] + kTileCols &&
+        full_group(gl) && full_group(gh) && gh.base[0] == gl.base[0] + kGroupLanes) {
+      // 8 consecutive rows and 8 consecutive columns (most tiles): plain loads and stores.
+      const std::int64_t pi = gl.base[0];
+      const std::int64_t pj = tc[0].col_row[0];
+      for (int c = 0; c < kP; ++c) {
+        double* col = P + (pj + c) * ldP + pi;
+        v[c] = _mm512_sub_pd(_mm512_loadu_pd(col), acc[c]);
+        _mm512_storeu_pd(col, v[c]);
+      }
+      transpose8(v, t);
+      double* m0 = P + pi * ldP + pj;  // P(cols, row pi)
+      for (int r = 0; r < kP; ++r) _mm512_storeu_pd(m0 + r * ldP, t[r]);
+      return;
+    }
+    // Across holes: masked loads and stores of the runs of rows, and of columns for the mirror.
+    const PanelRuns rows = panel_runs(gl, gh);
+    // The strip's 8 columns are all active here: only the last strip has fewer, and its one panel is the diagonal's.
     for (int c = 0; c < kP; ++c) {
-      double* col = P + (pj + c) * ldP + pi;
-      v[c] = _mm512_sub_pd(_mm512_loadu_pd(col), acc[c]);
-      _mm512_storeu_pd(col, v[c]);
+      double* col = P + tc[c / kTileCols].col_row[c % kTileCols] * ldP;
+      v[c] = _mm512_sub_pd(load_runs(col, rows), acc[c]);
+      store_runs(col, rows, v[c]);
     }
-    __m512d t[kP], u[kP];
-    for (int c = 0; c < kP; c += 2) {
-      t[c] = _mm512_unpacklo_pd(v[c], v[c + 1]);
-      t[c + 1] = _mm512_unpackhi_pd(v[c], v[c + 1]);
-    }
-    for (int q = 0; q < kP; q += 4) {
-      u[q] = _mm512_shuffle_f64x2(t[q], t[q + 2], 0x88);
-      u[q + 1] = _mm512_shuffle_f64x2(t[q + 1], t[q + 3], 0x88);
-      u[q + 2] = _mm512_shuffle_f64x2(t[q], t[q + 2], 0xDD);
-      u[q + 3] = _mm512_shuffle_f64x2(t[q + 1], t[q + 3], 0xDD);
-    }
-    double* m0 = P + pi * ldP + pj;  // P(cols, row pi)
-    for (int r = 0; r < 4; ++r) {
-      _mm512_storeu_pd(m0 + r * ldP, _mm512_shuffle_f64x2(u[r], u[r + 4], 0x88));
-      _mm512_storeu_pd(m0 + (r + 4) * ldP, _mm512_shuffle_f64x2(u[r], u[r + 4], 0xDD));
+    transpose8(v, t);
+    const int i0 = p * kP;
+    for (int r = 0; r < kP && i0 + r < active.n; ++r) {
+      store_runs(P + static_cast<std::int64_t>(active.rows[i0 + r]) * ldP, cols, t[r]);
     }
     return;
   }
@@ -401,6 +464,7 @@ RTSLAM_FILTER_AVX512 void downdate_avx512(double* P, std::int64_t ldP, ActiveRow
   for (int s0 = 0; s0 < n; s0 += kP) {
     TileColumns tc[2];
     const int halves = strip_columns(active, W, w_stride, s0, tc);
+    const PanelRuns cols = halves == 2 ? panel_runs(*tc[0].gc, *tc[1].gc) : PanelRuns{};
     // W(s0 + c, k) for the strip's 8 columns (packed rows past n are zero, and only the halves are written).
     const double* wj = W + static_cast<std::int64_t>(s0 / kP) * w_stride * kP;
     int p = s0 / kP;
@@ -419,8 +483,8 @@ RTSLAM_FILTER_AVX512 void downdate_avx512(double* P, std::int64_t ldP, ActiveRow
           b[c] = _mm512_fmadd_pd(xb, yc, b[c]);
         }
       }
-      write_strip_panel(P, ldP, active, tc, halves, p, a);
-      write_strip_panel(P, ldP, active, tc, halves, p + 1, b);
+      write_strip_panel(P, ldP, active, tc, halves, cols, p, a);
+      write_strip_panel(P, ldP, active, tc, halves, cols, p + 1, b);
     }
     if (p < np) {  // an odd panel left: one panel against the strip
       const double* wa = W + static_cast<std::int64_t>(p) * w_stride * kP;
@@ -431,7 +495,7 @@ RTSLAM_FILTER_AVX512 void downdate_avx512(double* P, std::int64_t ldP, ActiveRow
         const double* y = wj + k * kP;
         for (int c = 0; c < kP; ++c) a[c] = _mm512_fmadd_pd(xa, _mm512_set1_pd(y[c]), a[c]);
       }
-      write_strip_panel(P, ldP, active, tc, halves, p, a);
+      write_strip_panel(P, ldP, active, tc, halves, cols, p, a);
     }
   }
   _mm256_zeroupper();

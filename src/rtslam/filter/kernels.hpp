@@ -15,9 +15,11 @@
 // versions (the default where the CPU has FMA: every AVX2 CPU from Intel and AMD) do the same operations in the
 // same order with each multiply-add fused, one rounding instead of two: their results differ from the others' in
 // the last bits (tests bound the difference), and a run is still deterministic on one machine. Where the CPU has
-// AVX-512 (KernelIsa::avx512: Intel Xeon since Skylake-SP, AMD Zen 4 and later), the downdate takes 16 rows × 8
-// columns per tile in 512-bit registers, with the AVX2 + FMA variant's operations on every element: the same results,
-// bit for bit (tested), about twice the AVX2 tile's speed; the other kernels are the AVX2 + FMA ones.
+// AVX-512 (KernelIsa::avx512: Intel Xeon and HEDT CPUs since Skylake-SP/X, Ice/Tiger/Rocket Lake client CPUs, AMD
+// Zen 4 and later), the downdate takes 16 rows × 8 columns per tile in 512-bit registers, with the AVX2 + FMA
+// variant's operations on every element: the same results, bit for bit (tested); 1.4–1.7 times the AVX2 tiles' speed
+// on the project's Intel Xeon host (docs/performance.md), less on CPUs with one 512-bit FMA unit or 256-bit ones
+// (Zen 4). The other kernels are the AVX2 + FMA ones.
 #include <cstdint>
 #include <optional>
 #include <string_view>
@@ -31,7 +33,8 @@ KernelIsa best_kernel_isa();
 /// The instruction set the kernels use now (process-wide). It starts at best_kernel_isa(), or at the level the
 /// environment variable RTSLAM_KERNEL_ISA names (generic, avx2, avx2_fma, avx512; clamped to best_kernel_isa()):
 /// `RTSLAM_KERNEL_ISA=generic` gives results that do not depend on the CPU, and a level can be compared with
-/// another. A value that names no level is a ConfigError, at the first filter operation.
+/// another. A value that names no level is a ConfigError at the first kernel call (a correction, the covariance
+/// brought up to date, or set_kernel_isa), and at each one after it.
 KernelIsa kernel_isa();
 /// The level named (as to_string() writes it), or none.
 std::optional<KernelIsa> parse_kernel_isa(std::string_view name);

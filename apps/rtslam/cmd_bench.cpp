@@ -242,10 +242,12 @@ void run_bench(const BenchOptions& bo) {
   std::cout << fmt::format("  stages (median ms): predict {:.3f}, update {:.3f}, init {:.3f}, map {:.3f}\n",
                            io::percentiles(predict).median, io::percentiles(update).median,
                            io::percentiles(init).median, io::percentiles(map).median);
-  std::cout << fmt::format("  ratio to the paper's 60 Hz budget (16.7 ms): {:.1f}x faster (median)\n",
-                           (1000.0 / 60.0) / std::max(t.median, 1e-9));
+  std::cout << fmt::format("  ratio to the paper's 60 Hz budget (16.7 ms): {:.1f}x faster (median); filter kernels {} "
+                           "(RTSLAM_KERNEL_ISA)\n",
+                           (1000.0 / 60.0) / std::max(t.median, 1e-9), filter::to_string(filter::kernel_isa()));
   if (!bo.json.empty()) {
     nlohmann::json j;
+    j["kernel_isa"] = filter::to_string(filter::kernel_isa());
     j["frames"] = t.count;
     j["total_ms"] = io::to_json(t);
     j["predict_ms"] = io::to_json(io::percentiles(predict));

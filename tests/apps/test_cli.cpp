@@ -37,8 +37,8 @@ struct Result {
   std::string out;  // stdout and stderr
 };
 
-Result run(const std::string& args) {
-  const std::string cmd = std::string(RTSLAM_CLI) + " " + args + " 2>&1";
+Result run_command(const std::string& command) {
+  const std::string cmd = command + " 2>&1";
   Result r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -47,6 +47,13 @@ Result run(const std::string& args) {
   const int status = pclose(p);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+Result run(const std::string& args) { return run_command(std::string(RTSLAM_CLI) + " " + args); }
+
+// run() with environment assignments before the command ("NAME=value ...").
+Result run_env(const std::string& env, const std::string& args) {
+  return run_command(env + " " + std::string(RTSLAM_CLI) + " " + args);
 }
 
 std::string read_file(const fs::path& p) {
@@ -88,6 +95,23 @@ std::string http_get(int port, const std::string& path) {
 
 /// Processed frames of a run folder (rows of frames.csv after its header).
 int frames_of(const fs::path& out) { return count_lines(read_file(out / "frames.csv")) - 1; }
+
+// RTSLAM_KERNEL_ISA reaches the filter: the bench names the level it ran with, and a value that names none is a
+// one-line error naming the variable, with a non-zero exit.
+TEST(Cli, KernelLevelFromTheEnvironment) {
+  const auto run_with = [](const std::string& value) {
+    return run_env("RTSLAM_KERNEL_ISA=" + value, "bench --seeds 1 --duration 2");
+  };
+  const Result generic = run_with("generic");
+  EXPECT_EQ(generic.code, 0) << generic.out;
+  EXPECT_NE(generic.out.find("filter kernels generic (RTSLAM_KERNEL_ISA)"), std::string::npos) << generic.out;
+  const Result bad = run_with("sse9");
+  EXPECT_NE(bad.code, 0) << bad.out;
+  EXPECT_EQ(count_lines(bad.out), 1) << bad.out;
+  EXPECT_NE(bad.out.find("RTSLAM_KERNEL_ISA: 'sse9' is not an instruction set of the filter kernels"),
+            std::string::npos)
+      << bad.out;
+}
 
 TEST(Cli, EverySubcommandHasHelp) {
   for (const char* sub : {"run", "simulate", "eval", "batch", "report", "bench", "imu-noise", "view"}) {

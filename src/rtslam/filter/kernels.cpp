@@ -465,7 +465,7 @@ RTSLAM_FILTER_AVX512 void downdate_avx512(double* P, std::int64_t ldP, ActiveRow
     TileColumns tc[2];
     const int halves = strip_columns(active, W, w_stride, s0, tc);
     const PanelRuns cols = halves == 2 ? panel_runs(*tc[0].gc, *tc[1].gc) : PanelRuns{};
-    // W(s0 + c, k) for the strip's 8 columns (packed rows past n are zero, and only the halves are written).
+    // W(s0 + c, k) for the strip's 8 columns (lanes past n may hold anything: their sums are never written).
     const double* wj = W + static_cast<std::int64_t>(s0 / kP) * w_stride * kP;
     int p = s0 / kP;
     for (; p + 1 < np; p += 2) {

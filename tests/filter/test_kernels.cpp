@@ -3,6 +3,7 @@
 #include "rtslam/filter/kernels.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <vector>
@@ -261,6 +262,48 @@ TEST(FilterKernels, PHtSolveAndProductMatchDenseAndAgreeAcrossInstructionSets) {
     for (size_t k = 0; k < 3; ++k) {
       EXPECT_LT(relative_difference(results[2][k], results[0][k]), 1e-13) << k;
       EXPECT_FALSE(bit_identical(results[2][k], results[0][k])) << k << ": the FMA variant is not fused";
+    }
+  }
+}
+
+// A block's own share of W Wᵀ (the diagonal blocks of a correction): every level gives the generic sums bit for bit,
+// close to a dense reference, for blocks that start anywhere in a panel and span one to four panels. W's padding
+// (rows past n, columns past m) is NaN, so a sum that read it would show; G starts NaN, so an element the kernel
+// failed to write would show, and it must stay NaN above the diagonal and past t.
+TEST(FilterKernels, BlockGramGivesTheGenericSumsOnEveryLevel) {
+  Rng rng(8);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const int n = 45, ldG = 24;
+  for (const int m : {1, 7, 50}) {
+    const MatrixXd W = random_matrix(n, m, rng);
+    const std::vector<double> packed = pack(W, m + 3, nan);
+    for (int i0 = 0; i0 < 18; ++i0) {
+      for (const int t : {1, 2, 3, 4, 5, 7, 8, 9, 15, 18, 20}) {
+        if (i0 + t > n) continue;
+        const auto results = under_each_isa([&] {
+          MatrixXd G = MatrixXd::Constant(ldG, ldG, nan);
+          block_gram(packed.data(), m, m + 3, i0, t, G.data(), ldG);
+          return G;
+        });
+        const MatrixXd Wb = W.middleRows(i0, t);
+        const MatrixXd ref = Wb * Wb.transpose();
+        for (size_t level = 0; level < results.size(); ++level) {
+          const MatrixXd& G = results[level];
+          for (int c = 0; c < ldG; ++c) {
+            for (int r = 0; r < ldG; ++r) {
+              if (r < t && c <= r) {
+                ASSERT_NEAR(G(r, c), ref(r, c), 1e-12 * (1.0 + std::abs(ref(r, c))))
+                    << "m " << m << " i0 " << i0 << " t " << t << " (" << r << ", " << c << ") level " << level;
+              } else {
+                ASSERT_TRUE(std::isnan(G(r, c))) << "written outside the lower triangle: (" << r << ", " << c << ")";
+              }
+            }
+          }
+          for (int c = 0; c < t; ++c)
+            for (int r = c; r < t; ++r)
+              ASSERT_EQ(std::memcmp(&G(r, c), &results[0](r, c), sizeof(double)), 0) << "level " << level;
+        }
+      }
     }
   }
 }

@@ -225,6 +225,20 @@ void subtract_product_generic(double* W, int n, int m, const double* U, int mu, 
   subtract_product_body(W, n, m, U, mu, u_stride, G);
 }
 
+void block_gram_generic(const double* W, int m, int w_stride, int i0, int t, double* G, int ldG) {
+  for (int c = 0; c < t; ++c) {
+    const int j = i0 + c;
+    const double* wj = W + static_cast<std::int64_t>(j / kP) * w_stride * kP + j % kP;
+    for (int r = c; r < t; ++r) {
+      const int i = i0 + r;
+      const double* wi = W + static_cast<std::int64_t>(i / kP) * w_stride * kP + i % kP;
+      double acc = 0.0;
+      for (int k = 0; k < m; ++k) acc += wi[k * kP] * wj[k * kP];
+      G[r + static_cast<std::int64_t>(c) * ldG] = acc;
+    }
+  }
+}
+
 void downdate_generic(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m, int w_stride) {
   const int np = panel_count(active.n);
   for (int j0 = 0; j0 < active.n; j0 += kTileCols) {
@@ -306,6 +320,45 @@ RTSLAM_FILTER_AVX2 inline int strip_columns(ActiveRows active, const double* W, 
     for (int c = 0; c < kTileCols; ++c) t.col_row[c] = j0 + c < n ? active.rows[j0 + c] : active.rows[j0];
   }
   return halves;
+}
+
+// block_gram on every AVX2 level (plain multiplies and adds, as block_gram_generic): the block's rows by lane groups
+// of four against its columns four at a time, one accumulator per column; rows before i0 or past the block and
+// columns past it are computed from valid memory (the panel, the block's last column) and not written.
+RTSLAM_FILTER_AVX2 void block_gram_avx2(const double* W, int m, int w_stride, int i0, int t, double* G, int ldG) {
+  const auto packed = [W, w_stride](int i) {
+    return W + static_cast<std::int64_t>(i / kP) * w_stride * kP + i % kP;
+  };
+  const int last = i0 + t - 1;
+  for (int g = i0 / kGroupLanes; g <= last / kGroupLanes; ++g) {
+    const double* wg = packed(g * kGroupLanes);
+    const int row_end = std::min(last, g * kGroupLanes + kGroupLanes - 1);  // the group's last row in the block
+    for (int j0 = i0; j0 <= row_end; j0 += kTileCols) {
+      const double* wc[kTileCols];
+      for (int c = 0; c < kTileCols; ++c) wc[c] = packed(std::min(j0 + c, last));
+      __m256d acc0 = _mm256_setzero_pd(), acc1 = acc0, acc2 = acc0, acc3 = acc0;
+      for (int k = 0; k < m; ++k) {
+        const __m256d a = _mm256_loadu_pd(wg + k * kP);
+        acc0 = _mm256_add_pd(acc0, _mm256_mul_pd(a, _mm256_broadcast_sd(wc[0] + k * kP)));
+        acc1 = _mm256_add_pd(acc1, _mm256_mul_pd(a, _mm256_broadcast_sd(wc[1] + k * kP)));
+        acc2 = _mm256_add_pd(acc2, _mm256_mul_pd(a, _mm256_broadcast_sd(wc[2] + k * kP)));
+        acc3 = _mm256_add_pd(acc3, _mm256_mul_pd(a, _mm256_broadcast_sd(wc[3] + k * kP)));
+      }
+      alignas(32) double sums[kTileCols][kGroupLanes];
+      _mm256_store_pd(sums[0], acc0);
+      _mm256_store_pd(sums[1], acc1);
+      _mm256_store_pd(sums[2], acc2);
+      _mm256_store_pd(sums[3], acc3);
+      for (int c = 0; c < kTileCols && j0 + c <= row_end; ++c) {
+        const int j = j0 + c;
+        for (int l = 0; l < kGroupLanes; ++l) {
+          const int i = g * kGroupLanes + l;
+          if (i >= j && i <= last) G[(i - i0) + static_cast<std::int64_t>(j - i0) * ldG] = sums[c][l];
+        }
+      }
+    }
+  }
+  _mm256_zeroupper();
 }
 
 // The AVX2 kernels in two variants (kernels_avx2.inc): avx2:: with separate multiplies and adds, the generic
@@ -556,6 +609,13 @@ void subtract_product(double* W, int n, int m, const double* U, int mu, int u_st
   }
 #endif
   subtract_product_generic(W, n, m, U, mu, u_stride, G);
+}
+
+void block_gram(const double* W, int m, int w_stride, int i0, int t, double* G, int ldG) {
+#if defined(__x86_64__)
+  if (kernel_isa() != KernelIsa::generic) return block_gram_avx2(W, m, w_stride, i0, t, G, ldG);
+#endif
+  block_gram_generic(W, m, w_stride, i0, t, G, ldG);
 }
 
 void downdate_mirrored(double* P, std::int64_t ldP, ActiveRows active, const double* W, int m, int w_stride) {

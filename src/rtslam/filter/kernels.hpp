@@ -99,6 +99,12 @@ void solve_lower_transposed(double* W, int n, int m, ConstMatrixView L);
 /// column-major. Each element subtracts its sum accumulated from zero in k order.
 void subtract_product(double* W, int n, int m, const double* U, int mu, int u_stride, ConstMatrixView G);
 
+/// G(r, c) = Σ_k W(i0 + r, k) W(i0 + c, k) for 0 <= c <= r < t (the lower triangle, diagonal included; G column-major
+/// with leading dimension ldG, nothing above the diagonal written), W packed with panel stride w_stride >= m: one
+/// block's own share of W Wᵀ, its t packed rows consecutive. Every level accumulates each element from zero in k
+/// order with a separate multiply and add, so the results are the generic ones, bit for bit, whatever the CPU.
+void block_gram(const double* W, int m, int w_stride, int i0, int t, double* G, int ldG);
+
 /// P ← P − W Wᵀ over the active rows (P column-major, leading dimension ldP) for W packed with panel stride
 /// w_stride >= m: the lower triangle (diagonal included) is updated, each element minus Σ_k W(i, k) W(j, k)
 /// accumulated from zero in k order, and each updated value is copied onto its mirror above the diagonal, so P

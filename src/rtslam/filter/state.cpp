@@ -717,19 +717,16 @@ void State::defer_downdate(int m) {
   constexpr int kP = kernels::kPanelRows;
   if (pending_ + m > pending_capacity_) apply_pending();
   // Each block's own covariance, exactly symmetric: P_bb −= W_b W_bᵀ (lower triangle, mirrored).
+  double* G = tmp_small_.data();
+  const int ldG = static_cast<int>(tmp_small_.outerStride());
   for (const BlockInfo& b : blocks_) {
     if (!b.used) continue;
     const int t = b.tangent_size();
     const int i0 = packed_index_[static_cast<size_t>(b.tangent_offset)];
+    kernels::block_gram(W_.data(), m, m, i0, t, G, ldG);
     for (int c = 0; c < t; ++c) {
-      const int j = i0 + c;
-      const double* wj = W_.data() + static_cast<std::int64_t>(j / kP) * m * kP + j % kP;
       for (int r = c; r < t; ++r) {
-        const int i = i0 + r;
-        const double* wi = W_.data() + static_cast<std::int64_t>(i / kP) * m * kP + i % kP;
-        double acc = 0.0;
-        for (int k = 0; k < m; ++k) acc += wi[k * kP] * wj[k * kP];
-        const double v = P_(b.tangent_offset + r, b.tangent_offset + c) - acc;
+        const double v = P_(b.tangent_offset + r, b.tangent_offset + c) - G[r + static_cast<std::int64_t>(c) * ldG];
         P_(b.tangent_offset + r, b.tangent_offset + c) = v;
         P_(b.tangent_offset + c, b.tangent_offset + r) = v;
       }

@@ -209,10 +209,10 @@ TEST(Warp, PointBehindACameraIsRejectedAndIdentityDistortionChangesNothing) {
   EXPECT_EQ(out_zoom.at(7, 7), out_plain.at(7, 7));  // the centre is the landmark in both
 }
 
-// Stored patches of 2 or 3 pixels a side, the smallest the AVX2 kernel takes: its gathers read the four bytes that
-// start with the top pixel pair and the four that end with the bottom one. The patch's bytes are put against an
-// inaccessible page, once after their end and once before their start, so a read past either end faults (the
-// sanitizers do not see into gathers). Every level gives the same bytes and the same count of pixels outside.
+// Stored patches of 2 or 3 pixels a side, the smallest the AVX2 kernel takes. The patch's bytes are put against an
+// inaccessible page, once after their end and once before their start, so that a kernel reading past either end
+// (a wider load of a pixel pair, say) faults, whether or not a sanitizer instruments the load. Every level gives
+// the same bytes and the same count of pixels outside.
 #if defined(__linux__)
 class GuardedBytes {
  public:

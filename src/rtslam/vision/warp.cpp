@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include <Eigen/LU>
 
@@ -102,14 +101,11 @@ bool warp_scalar(const PixelMap& m, ImageView init_patch, MutableImageView out, 
 }
 
 #if defined(__x86_64__)
-/// Four output pixels of a row at a time (a 15-pixel row is three groups and a group of three, whose fourth lane
-/// repeats the row's last pixel and is not stored). A group with a pixel outside the stored patch's interior is done
-/// pixel by pixel, as the scalar kernel does it. Each pixel's two pairs of neighbours come from two 32-bit gathers
-/// that stay inside the patch's rows: the four bytes that start with the top pair (a row lies below it) and the four
-/// that end with the bottom pair (a row lies above it).
+/// Four output pixels at a time, in raster order across rows (a 15x15 patch is 56 groups and one pixel). A group
+/// with a pixel outside the stored patch's interior is done pixel by pixel, as the scalar kernel does it. The lanes'
+/// coordinates and pixels are built in registers: a vector load of four scalar stores would stall on forwarding.
 RTSLAM_AVX2 bool warp_avx2(const PixelMap& m, ImageView init_patch, MutableImageView out, int& n_outside) {
-  if (init_patch.width < 2 || init_patch.height < 2) return warp_scalar(m, init_patch, out, n_outside);
-  const int w = out.width;
+  const int w = out.width, total = out.width * out.height;
   const __m256d g00 = _mm256_set1_pd(m.G[0][0]), g01 = _mm256_set1_pd(m.G[0][1]), g02 = _mm256_set1_pd(m.G[0][2]);
   const __m256d g10 = _mm256_set1_pd(m.G[1][0]), g11 = _mm256_set1_pd(m.G[1][1]), g12 = _mm256_set1_pd(m.G[1][2]);
   const __m256d g20 = _mm256_set1_pd(m.G[2][0]), g21 = _mm256_set1_pd(m.G[2][1]), g22 = _mm256_set1_pd(m.G[2][2]);
@@ -117,45 +113,58 @@ RTSLAM_AVX2 bool warp_avx2(const PixelMap& m, ImageView init_patch, MutableImage
   const __m256d a10 = _mm256_set1_pd(m.A0[1][0]), a11 = _mm256_set1_pd(m.A0[1][1]);
   const __m256d off_u = _mm256_set1_pd(m.off_u), off_v = _mm256_set1_pd(m.off_v);
   const __m256d max_u = _mm256_set1_pd(m.max_u), max_v = _mm256_set1_pd(m.max_v);
-  const __m256d zero = _mm256_setzero_pd(), half = _mm256_set1_pd(0.5);
-  const __m256d lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0), last_i = _mm256_set1_pd(w - 1);
+  const __m256d zero = _mm256_setzero_pd(), half = _mm256_set1_pd(0.5), one = _mm256_set1_pd(1.0);
+  const __m256d width = _mm256_set1_pd(w), four = _mm256_set1_pd(4.0);
   const __m128i low_byte = _mm_set1_epi32(0xFF);
-  const auto* src = reinterpret_cast<const int*>(init_patch.data);
-  const __m128i stride = _mm_set1_epi32(init_patch.stride);
-  const __m128i below = _mm_set1_epi32(init_patch.stride - 2);
-  for (int j = 0; j < out.height; ++j) {
-    const __m256d vj = _mm256_set1_pd(j);
-    // G(r, 1) j, as each pixel's sum adds it (the same value for the whole row).
-    const __m256d xj = _mm256_mul_pd(g01, vj), yj = _mm256_mul_pd(g11, vj), zj = _mm256_mul_pd(g21, vj);
-    std::uint8_t* dst = out.row(j);
-    for (int i0 = 0; i0 < w; i0 += 4) {
-      const int valid = std::min(4, w - i0);
-      __m256d vi = _mm256_add_pd(_mm256_set1_pd(i0), lanes);
-      if (valid < 4) vi = _mm256_min_pd(vi, last_i);
-      const __m256d xh = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(g00, vi), xj), g02);
-      const __m256d yh = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(g10, vi), yj), g12);
-      const __m256d zh = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(g20, vi), zj), g22);
-      if (_mm256_movemask_pd(_mm256_cmp_pd(zh, zero, _CMP_GT_OQ)) != 0xF) {
-        _mm256_zeroupper();
-        return false;
-      }
-      const __m256d x0 = _mm256_div_pd(xh, zh), y0 = _mm256_div_pd(yh, zh);
-      const __m256d pu = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a00, x0), _mm256_mul_pd(a01, y0)), off_u);
-      const __m256d pv = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a10, x0), _mm256_mul_pd(a11, y0)), off_v);
-      const __m256d inside =
-          _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(pu, zero, _CMP_GE_OQ), _mm256_cmp_pd(pu, max_u, _CMP_LT_OQ)),
-                        _mm256_and_pd(_mm256_cmp_pd(pv, zero, _CMP_GE_OQ), _mm256_cmp_pd(pv, max_v, _CMP_LT_OQ)));
-      if (_mm256_movemask_pd(inside) != 0xF) {
-        for (int l = 0; l < valid; ++l) warp_pixel(m, init_patch, i0 + l, j, dst[i0 + l], n_outside);
-        continue;
-      }
+  const std::uint8_t* src = init_patch.data;
+  const std::ptrdiff_t stride = init_patch.stride;
+  const auto pair = [](const std::uint8_t* p) {  // p[0] | p[1] << 8, without reading past p[1]
+    return static_cast<int>(p[0]) | static_cast<int>(p[1]) << 8;
+  };
+  // Lane coordinates of the group (exact small integers as doubles): (0..3, 0) wrapped at the row's end.
+  __m256d vi = _mm256_set_pd(3.0, 2.0, 1.0, 0.0), vj = zero;
+  for (int wrap = 0; wrap < 4; ++wrap) {
+    const __m256d past = _mm256_cmp_pd(vi, width, _CMP_GE_OQ);
+    vi = _mm256_sub_pd(vi, _mm256_and_pd(past, width));
+    vj = _mm256_add_pd(vj, _mm256_and_pd(past, one));
+  }
+  int ci = 0, cj = 0;  // the group's first pixel
+  const auto step = [w](int& x, int& y) {
+    if (++x == w) {
+      x = 0;
+      ++y;
+    }
+  };
+  int k = 0;
+  for (; k + 4 <= total; k += 4) {
+    const __m256d xh = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(g00, vi), _mm256_mul_pd(g01, vj)), g02);
+    const __m256d yh = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(g10, vi), _mm256_mul_pd(g11, vj)), g12);
+    const __m256d zh = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(g20, vi), _mm256_mul_pd(g21, vj)), g22);
+    if (_mm256_movemask_pd(_mm256_cmp_pd(zh, zero, _CMP_GT_OQ)) != 0xF) {
+      _mm256_zeroupper();
+      return false;
+    }
+    const __m256d x0 = _mm256_div_pd(xh, zh), y0 = _mm256_div_pd(yh, zh);
+    const __m256d pu = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a00, x0), _mm256_mul_pd(a01, y0)), off_u);
+    const __m256d pv = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a10, x0), _mm256_mul_pd(a11, y0)), off_v);
+    const __m256d inside =
+        _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(pu, zero, _CMP_GE_OQ), _mm256_cmp_pd(pu, max_u, _CMP_LT_OQ)),
+                      _mm256_and_pd(_mm256_cmp_pd(pv, zero, _CMP_GE_OQ), _mm256_cmp_pd(pv, max_v, _CMP_LT_OQ)));
+    int x = ci, y = cj;
+    if (_mm256_movemask_pd(inside) != 0xF) {
+      for (int l = 0; l < 4; ++l, step(x, y)) warp_pixel(m, init_patch, x, y, out.row(y)[x], n_outside);
+    } else {
       const __m128i iu = _mm256_cvttpd_epi32(pu), iv = _mm256_cvttpd_epi32(pv);
       const __m256d fu = _mm256_sub_pd(pu, _mm256_cvtepi32_pd(iu));
       const __m256d fv = _mm256_sub_pd(pv, _mm256_cvtepi32_pd(iv));
-      const __m128i offset = _mm_add_epi32(_mm_mullo_epi32(iv, stride), iu);
-      const __m128i r0 = _mm_i32gather_epi32(src, offset, 1);
-      const __m128i r1 = _mm_srli_epi32(_mm_i32gather_epi32(src, _mm_add_epi32(offset, below), 1), 16);
-      const __m128i v00 = _mm_and_si128(r0, low_byte), v01 = _mm_and_si128(_mm_srli_epi32(r0, 8), low_byte);
+      const __m128i offset = _mm_add_epi32(_mm_mullo_epi32(iv, _mm_set1_epi32(static_cast<int>(stride))), iu);
+      const std::uint8_t* p0 = src + _mm_cvtsi128_si32(offset);
+      const std::uint8_t* p1 = src + _mm_extract_epi32(offset, 1);
+      const std::uint8_t* p2 = src + _mm_extract_epi32(offset, 2);
+      const std::uint8_t* p3 = src + _mm_extract_epi32(offset, 3);
+      const __m128i r0 = _mm_setr_epi32(pair(p0), pair(p1), pair(p2), pair(p3));
+      const __m128i r1 = _mm_setr_epi32(pair(p0 + stride), pair(p1 + stride), pair(p2 + stride), pair(p3 + stride));
+      const __m128i v00 = _mm_and_si128(r0, low_byte), v01 = _mm_srli_epi32(r0, 8);
       const __m128i v10 = _mm_and_si128(r1, low_byte), v11 = _mm_srli_epi32(r1, 8);
       const __m256d top =
           _mm256_add_pd(_mm256_cvtepi32_pd(v00), _mm256_mul_pd(fu, _mm256_cvtepi32_pd(_mm_sub_epi32(v01, v00))));
@@ -163,16 +172,24 @@ RTSLAM_AVX2 bool warp_avx2(const PixelMap& m, ImageView init_patch, MutableImage
           _mm256_add_pd(_mm256_cvtepi32_pd(v10), _mm256_mul_pd(fu, _mm256_cvtepi32_pd(_mm_sub_epi32(v11, v10))));
       const __m256d v = _mm256_add_pd(_mm256_add_pd(top, _mm256_mul_pd(fv, _mm256_sub_pd(bottom, top))), half);
       const __m128i bytes32 = _mm256_cvttpd_epi32(v);  // 0..255 each
-      const auto packed = static_cast<std::uint32_t>(
+      auto packed = static_cast<std::uint32_t>(
           _mm_cvtsi128_si32(_mm_packus_epi16(_mm_packus_epi32(bytes32, bytes32), _mm_setzero_si128())));
-      if (valid == 4) {
-        std::memcpy(dst + i0, &packed, 4);
-      } else {
-        for (int l = 0; l < valid; ++l) dst[i0 + l] = static_cast<std::uint8_t>(packed >> (8 * l));
-      }
+      for (int l = 0; l < 4; ++l, step(x, y), packed >>= 8) out.row(y)[x] = static_cast<std::uint8_t>(packed);
+    }
+    ci = x;
+    cj = y;
+    vi = _mm256_add_pd(vi, four);
+    for (int wrap = 0; wrap < 4; ++wrap) {  // once when the patch is at least 4 wide
+      const __m256d past = _mm256_cmp_pd(vi, width, _CMP_GE_OQ);
+      if (_mm256_movemask_pd(past) == 0) break;
+      vi = _mm256_sub_pd(vi, _mm256_and_pd(past, width));
+      vj = _mm256_add_pd(vj, _mm256_and_pd(past, one));
     }
   }
   _mm256_zeroupper();  // before plain SSE code (see simd.hpp)
+  for (; k < total; ++k, step(ci, cj)) {
+    if (!warp_pixel(m, init_patch, ci, cj, out.row(cj)[ci], n_outside)) return false;
+  }
   return true;
 }
 #endif

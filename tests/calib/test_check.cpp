@@ -141,6 +141,25 @@ TEST_P(CalibrationCheck, ImuShiftedBy30msIsMeasuredAndReported) {
   EXPECT_NE(r.warnings[0].find(fmt::format("t_d = {:.1f} ms", r.t_d_measured_ms)), std::string::npos) << r.warnings[0];
 }
 
+// The image intervals' rotations run on several threads: one thread or three give the same result, bit for bit.
+TEST_P(CalibrationCheck, TheResultDoesNotDependOnTheNumberOfThreads) {
+  const Rendered& d = rendered(GetParam());
+  CheckResult r[2];
+  for (int k = 0; k < 2; ++k) {
+    CheckOptions o = short_window();
+    o.threads = k == 0 ? 1 : 3;
+    VectorSource src(d.measurements);
+    r[k] = check_calibration(src, d.rig, 0, d.rig.t_d, o);
+  }
+  ASSERT_EQ(r[0].verdict, Verdict::ok) << r[0].reason;
+  EXPECT_EQ(r[1].verdict, r[0].verdict);
+  EXPECT_EQ(r[1].intervals_valid, r[0].intervals_valid);
+  EXPECT_EQ(r[1].visual_rms_px, r[0].visual_rms_px);
+  EXPECT_EQ(r[1].rotation_error_deg, r[0].rotation_error_deg);
+  EXPECT_EQ(r[1].t_d_measured_ms, r[0].t_d_measured_ms);
+  EXPECT_EQ(r[1].gyro_bias, r[0].gyro_bias);
+}
+
 INSTANTIATE_TEST_SUITE_P(Rendered, CalibrationCheck, ::testing::Values("v101"),
                          [](const auto& info) { return info.param; });
 

@@ -51,6 +51,9 @@ struct CheckOptions {
   double search_px = 30.0;          // half-size of the search box around the predicted position, in [2, 200]
   double gap_factor = 1.5;          // a stream interval > gap_factor × median is a gap, in (1, 100]
   bool epipolar = true;             // inter-image rotation with the translation free (false: pure rotation)
+  /// Threads for the image intervals' rotations (not a YAML key): 0 = one per core, at most 4. The results do not
+  /// depend on it (each interval has its own generator).
+  int threads = 0;
 
   /// Throws ConfigError naming the key, the value and the bound.
   void validate() const;

@@ -571,6 +571,10 @@ CheckResult check_dataset_calibration(const std::string& spec, io::DatasetOption
   dopt.use_imu = true;
   dopt.duration_s = 0.0;  // the check reads what it needs (start_offset_s is kept: the run's start)
   io::Dataset ds = io::open_dataset(spec, dopt);
+  // Images decoded ahead while the check tracks the ones before (the stream is the same; as the run reads it).
+  io::PrefetchOptions prefetch;
+  prefetch.threads = io::default_prefetch_threads();
+  if (prefetch.threads > 0) ds.source->prefetch(prefetch);
   CheckResult r = check_calibration(*ds.source, ds.rig, 0, t_d_configured.value_or(ds.rig.t_d), o);
   r.cost_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - clock0).count();
   return r;

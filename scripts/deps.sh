@@ -6,6 +6,8 @@ packages=(
   # the test command's sanitizer build and its fuzz targets (scripts/test.sh), and the linker of both builds
   clang lld libfuzzer-14-dev libclang-rt-14-dev
   libeigen3-dev libopencv-dev libdeflate-dev libyaml-cpp-dev libcli11-dev libfmt-dev libspdlog-dev
+  # FFmpeg's libraries (OpenCV's video I/O; the variable-frame-rate video test writes its file with them)
+  libavformat-dev libavcodec-dev libavutil-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev gnuplot-nox chromium
   libcivetweb-dev nodejs
   # ROS1 (optional at build time, RTSLAM_WITH_ROS; docs/ros.md): bags, the rtslam_ros node, rosmaster for its test

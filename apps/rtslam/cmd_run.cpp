@@ -831,7 +831,8 @@ void register_run(CLI::App& app) {
   sub->add_option("--duration", opts->duration_s, "Simulated runs: duration in s (default: the preset's, 30)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--rate", opts->rate_hz,
-                  "Image folders: their rate in Hz; --points-demo: camera rate (default 30)")
+                  "Image folders: their rate in Hz; videos: frames at i / rate instead of their own times; "
+                  "--points-demo: camera rate (default 30)")
       ->check(CLI::PositiveNumber);
   sub->add_flag("--points-demo", opts->points_demo,
                 "Run the walking skeleton instead: simulated point measurements with known association");

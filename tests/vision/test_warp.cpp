@@ -255,7 +255,8 @@ TEST(Warp, TinyStoredPatchesGiveTheSameBytesOnEveryLevel) {
     const RigidPose T0 = looking_at({0.0, 0.0, 0.0}, p_W, 0.0);
     // Five to eight times closer along the same ray, so that the output patch samples the stored one's interior.
     const RigidPose T1 = looking_at(p_W * randu(rng, 0.8, 0.88), p_W, randu(rng, -1.0, 1.0));
-    const Eigen::Vector2d c0 = project_test(kK, T0, p_W) + Eigen::Vector2d(randu(rng, -0.5, 0.5), randu(rng, -0.5, 0.5));
+    const Eigen::Vector2d jitter(randu(rng, -0.5, 0.5), randu(rng, -0.5, 0.5));
+    const Eigen::Vector2d c0 = project_test(kK, T0, p_W) + jitter;
     std::vector<WarpResult> results;
     std::vector<Image> outs;
     for (const SimdLevel level : test::simd_levels()) {

@@ -504,47 +504,135 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
     cv::utils::logging::setLogLevel(level);
   }
   if (!capture_->isOpened()) throw IoError(fmt::format("{}: cannot open the video (unknown format or codec)", path));
-  if (rate_hz_ <= 0) rate_hz_ = capture_->get(cv::CAP_PROP_FPS);
+  const double fps = capture_->get(cv::CAP_PROP_FPS);
+  const double n = capture_->get(cv::CAP_PROP_FRAME_COUNT);
+  if (n > 0 && std::isfinite(n)) frame_count_ = static_cast<std::size_t>(n);
+  // OpenCV's count is the container's, or its duration x its frame rate: either way count / rate is the duration.
+  if (frame_count_ && fps > 0 && std::isfinite(fps)) duration_s_ = static_cast<double>(*frame_count_) / fps;
+  // How the container times its frames, from the first ones (kept, converted, for next()): presentation times when
+  // the backend gives them (the first at 0, the others after it), else the container's frame rate. A given rate
+  // times the frames at i / rate whatever the container says (its times still tell a truncated file).
+  constexpr std::size_t kProbeFrames = 5;
+  has_pts_ = true;  // decode_frame takes the times
+  Frame f;
+  while (head_.size() < kProbeFrames && decode_frame(f)) head_.push_back(std::move(f));
+  std::vector<double> intervals;
+  for (std::size_t k = 1; k < head_.size(); ++k) {
+    const double d = head_[k].pts_ms - head_[k - 1].pts_ms;
+    if (std::isfinite(d) && d > 0) intervals.push_back(d);
+  }
+  const bool no_times = head_.size() >= 2 && std::all_of(head_.begin(), head_.end(), [](const Frame& h) {
+    return h.pts_ms == 0.0 || !std::isfinite(h.pts_ms);
+  });
+  has_pts_ = !no_times && !head_.empty();
+  use_pts_ = has_pts_ && !(rate_hz_ > 0);
+  double measured_hz = 0.0;  // the lower median interval's rate: with a few frames dropped, the camera's
+  if (has_pts_ && !intervals.empty()) {
+    const auto mid = intervals.begin() + static_cast<std::ptrdiff_t>((intervals.size() - 1) / 2);
+    std::nth_element(intervals.begin(), mid, intervals.end());
+    measured_hz = 1e3 / *mid;
+    // A count that is the duration x a rate guessed from the time base (Matroska: 1000 "fps") is no count: the
+    // duration at the frames' own rate instead (the progress line's total).
+    if (duration_s_ > 0 && !(std::abs(fps - measured_hz) <= 0.25 * measured_hz)) {
+      frame_count_ = static_cast<std::size_t>(std::llround(duration_s_ * measured_hz));
+    }
+  }
+  if (!(rate_hz_ > 0)) {
+    rate_hz_ = measured_hz > 0 ? measured_hz : fps;
+    // A constant rate: the container's, exact.
+    if (measured_hz > 0 && std::abs(fps - measured_hz) <= 0.01 * measured_hz) rate_hz_ = fps;
+  }
   if (!(rate_hz_ > 0) || !std::isfinite(rate_hz_)) {
     throw ConfigError(fmt::format("{}: the video does not state its frame rate: give the rate option", path));
   }
-  const double n = capture_->get(cv::CAP_PROP_FRAME_COUNT);
-  if (n > 0 && std::isfinite(n)) frame_count_ = static_cast<std::size_t>(n);
 }
 
 VideoSource::~VideoSource() = default;
 
+bool VideoSource::read_frame(Frame& f) {
+  if (!head_.empty()) {
+    f = std::move(head_.front());
+    head_.pop_front();
+    return true;
+  }
+  return decode_frame(f);
+}
+
+bool VideoSource::decode_frame(Frame& f) {
+  cv::Mat raw;
+  if (!capture_->read(raw) || raw.empty()) return false;
+  f.pts_ms = has_pts_ ? capture_->get(cv::CAP_PROP_POS_MSEC) : 0.0;
+  f.why.clear();
+  f.grey = to_grey8(raw, &f.why, &image_bits_);  // in stream order (a 16-bit stream's depth so far)
+  return true;
+}
+
+void VideoSource::report_early_end() {
+  if (end_reported_) return;
+  // The container says how many frames (or seconds) it holds: ending well before is a truncated or corrupt file, not
+  // its end. Slack for counts that are estimates (MKV/WebM: duration x fps, audio included; variable frame rates): 5
+  // frames or 2 %.
+  if (has_pts_) {
+    if (duration_s_ <= 0 || !last_pts_ms_) return;
+    const double end_s = *last_pts_ms_ * 1e-3;
+    if (end_s + std::max(5.0 / rate_hz_, 0.02 * duration_s_) >= duration_s_) return;
+    end_reported_ = true;
+    reporter_.report(&SourceStats::undecodable_images,
+                     fmt::format("{}: the video ends at frame {} ({:.3f} s) of the {:.3f} s its container lists "
+                                 "(truncated or corrupt)", path_, index_, end_s, duration_s_),
+                     true);
+    return;
+  }
+  const std::size_t slack = frame_count_ ? std::max<std::size_t>(5, *frame_count_ / 50) : 0;
+  if (frame_count_ && index_ + slack < *frame_count_) {
+    end_reported_ = true;
+    reporter_.report(&SourceStats::undecodable_images,
+                     fmt::format("{}: the video ends at frame {} of the {} its container lists (truncated or "
+                                 "corrupt)", path_, index_, *frame_count_),
+                     true);
+  }
+}
+
 std::optional<Measurement> VideoSource::next() {
   while (true) {
-    cv::Mat raw;
-    if (!capture_->read(raw) || raw.empty()) {
-      // The container says how many frames it holds: ending well before is a truncated or corrupt file, not its end.
-      // Slack for counts that are estimates (MKV/WebM: duration x fps, audio included; variable frame rates): 5
-      // frames or 2 %.
-      const std::size_t slack = frame_count_ ? std::max<std::size_t>(5, *frame_count_ / 50) : 0;
-      if (frame_count_ && index_ + slack < *frame_count_ && !end_reported_) {
-        end_reported_ = true;
-        reporter_.report(&SourceStats::undecodable_images,
-                         fmt::format("{}: the video ends at frame {} of the {} its container lists (truncated or "
-                                     "corrupt)", path_, index_, *frame_count_),
-                         true);
-      }
+    Frame f;
+    if (!read_frame(f)) {
+      report_early_end();
       return std::nullopt;
     }
+    const double pts_ms = f.pts_ms;
     const std::size_t i = index_++;
     ImageFrame frame;
-    const auto t = from_seconds_checked(static_cast<double>(i) / rate_hz_);
+    frame.path = fmt::format("{}#{}", path_, i);
+    std::optional<TimeNs> t;
+    if (use_pts_) {
+      if (last_pts_ms_ && pts_ms == *last_pts_ms_) {
+        reporter_.report(&SourceStats::duplicate_timestamps,
+                         fmt::format("{}: duplicate presentation time {:.3f} ms (give the rate option to time the "
+                                     "frames at i / rate)", frame.path, pts_ms));
+        continue;
+      }
+      if (last_pts_ms_ && !(pts_ms > *last_pts_ms_)) {
+        reporter_.report(&SourceStats::backwards_timestamps,
+                         fmt::format("{}: presentation time {:.3f} ms goes backwards (previous {:.3f} ms; give the "
+                                     "rate option to time the frames at i / rate)", frame.path, pts_ms,
+                                     *last_pts_ms_));
+        continue;
+      }
+      t = from_seconds_checked(pts_ms * 1e-3);
+    } else {
+      t = from_seconds_checked(static_cast<double>(i) / rate_hz_);
+    }
     const auto t_frame = t ? add_checked(t0_, *t) : std::nullopt;
     if (!t_frame) {
       throw DataError(fmt::format("{}: frame {} at {:g} Hz lies beyond the int64 nanosecond time range", path_, i,
                                   rate_hz_));
     }
     frame.t = *t_frame;
-    frame.path = fmt::format("{}#{}", path_, i);
-    std::string why;
-    frame.image = to_grey8(raw, &why, &image_bits_);
+    if (has_pts_) last_pts_ms_ = pts_ms;
+    frame.image = std::move(f.grey);
     if (frame.image.empty()) {
-      reporter_.report(&SourceStats::unsupported_images, fmt::format("{}: frame {}", frame.path, why), true);
+      reporter_.report(&SourceStats::unsupported_images, fmt::format("{}: frame {}", frame.path, f.why), true);
       continue;
     }
     if (expected_size_.width > 0 && expected_size_.height > 0 && frame.image.size() != expected_size_) {

@@ -8,6 +8,7 @@
 // (default: DataError for bad values, IoError for bad files) and skipping the offending item, counted in
 // SourceStats. Nothing is dropped silently: every skip is counted and its message kept (the first 100) and logged.
 #include <cstddef>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -250,6 +251,11 @@ class IndexedSource : public Source {
 
 /// A video file read with OpenCV. Frame i has t = t0 + i / rate (rate from the option, else the container's fps).
 /// Frames are converted to grey.
+/// A video file read through OpenCV (FFmpeg first). Frame times: t0 + the container's presentation time of each frame
+/// (variable frame rates, as phones record, keep their real times), strictly increasing (a duplicate or backward time
+/// is bad input); or t0 + i / rate_hz when rate_hz > 0 is given, or when the backend gives no presentation times
+/// (every frame at 0) — then at the container's frame rate. rate_hz() is the nominal rate: the given one, else one
+/// over the median interval of the first frames' times, else the container's.
 class VideoSource : public Source {
  public:
   VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size, BadInputPolicy policy);
@@ -258,8 +264,22 @@ class VideoSource : public Source {
   const SourceStats& stats() const override { return stats_; }
   std::optional<std::size_t> image_count() const override { return frame_count_; }
   double rate_hz() const { return rate_hz_; }
+  /// Whether frames are timed by the container's presentation times (else i / rate_hz()).
+  bool presentation_times() const { return use_pts_; }
 
  private:
+  struct Frame {
+    cv::Mat grey;     // to_grey8's (empty: refused, why says why)
+    std::string why;
+    double pts_ms = 0.0;
+  };
+  /// The next frame (the probed ones first), converted, and its presentation time (meaningful when has_pts_); false
+  /// at the end.
+  bool read_frame(Frame& f);
+  /// The next frame from the file (decode_frame: what read_frame does without the probed frames).
+  bool decode_frame(Frame& f);
+  void report_early_end();
+
   std::string path_;
   double rate_hz_ = 0.0;
   TimeNs t0_ = 0;
@@ -270,7 +290,12 @@ class VideoSource : public Source {
   std::size_t index_ = 0;
   int image_bits_ = 8;
   std::optional<std::size_t> frame_count_;
+  double duration_s_ = 0.0;  // the container's (frame count / frame rate), 0 when unknown
   bool end_reported_ = false;
+  bool has_pts_ = false;                         // the backend gives presentation times
+  bool use_pts_ = false;                         // and the frames are timed by them (no rate given)
+  std::deque<Frame> head_;                       // frames read ahead at opening (to see how they are timed)
+  std::optional<double> last_pts_ms_;            // presentation time of the last frame returned
 };
 
 /// Converts a decoded image to 8-bit grey (CV_8UC1). Channels: 1 (grey), 2 (grey + alpha: the grey), 3 (BGR) and 4

@@ -59,7 +59,7 @@ void calcheck_command(const CheckCalibrationOptions& co) {
 std::optional<calib::CheckResult> calibration_prepass(const std::string& dataset_spec,
                                                       const io::DatasetOptions& dataset_options,
                                                       const pipeline::ImageSlamOptions& o, bool simulated,
-                                                      std::string& skipped) {
+                                                      std::string& skipped, int prefetch_threads) {
   if (o.robot != "inertial") {
     skipped = o.robot + " robot: the IMU is not used";
     return std::nullopt;
@@ -75,7 +75,7 @@ std::optional<calib::CheckResult> calibration_prepass(const std::string& dataset
   calib::CheckResult r;
   try {
     r = calib::check_dataset_calibration(dataset_spec, dataset_options, o.camera, calcheck_configured_offset(o),
-                                         o.imu.calibration_check);
+                                         o.imu.calibration_check, prefetch_threads);
   } catch (const Error& e) {
     // The run opened this dataset already: a problem here is the check's (e.g. bad data under the error policy
     // inside the window), reported, not fatal.

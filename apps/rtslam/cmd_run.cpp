@@ -456,7 +456,7 @@ void run_dataset(const RunOptions& ro) {
   io::start_prefetch(ds.source, ro.prefetch);  // decoding (rendering) in worker threads; the stream is the same
   // Calibration check (inertial runs): a pre-pass over the dataset opened again; the run's stream timing recorded.
   std::string calibration_skipped;
-  const auto calibration = calibration_prepass(ro.dataset, dopt, o, simulated, calibration_skipped);
+  const auto calibration = calibration_prepass(ro.dataset, dopt, o, simulated, calibration_skipped, ro.prefetch);
   // Real time: the stream is released at the sensor clock by an acquisition thread; late images are dropped. A live
   // camera is always read so (its clock is the wall clock: speed 1, released as it arrives). A replay's clock starts
   // at the filter's first request, so the set-up below drops nothing.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -277,32 +278,34 @@ TEST(FilterKernels, BlockGramGivesTheGenericSumsOnEveryLevel) {
   for (const int m : {1, 7, 50}) {
     const MatrixXd W = random_matrix(n, m, rng);
     const std::vector<double> packed = pack(W, m + 3, nan);
-    for (int i0 = 0; i0 < 18; ++i0) {
-      for (const int t : {1, 2, 3, 4, 5, 7, 8, 9, 15, 18, 20}) {
-        if (i0 + t > n) continue;
-        const auto results = under_each_isa([&] {
-          MatrixXd G = MatrixXd::Constant(ldG, ldG, nan);
-          block_gram(packed.data(), m, m + 3, i0, t, G.data(), ldG);
-          return G;
-        });
-        const MatrixXd Wb = W.middleRows(i0, t);
-        const MatrixXd ref = Wb * Wb.transpose();
-        for (size_t level = 0; level < results.size(); ++level) {
-          const MatrixXd& G = results[level];
-          for (int c = 0; c < ldG; ++c) {
-            for (int r = 0; r < ldG; ++r) {
-              if (r < t && c <= r) {
-                ASSERT_NEAR(G(r, c), ref(r, c), 1e-12 * (1.0 + std::abs(ref(r, c))))
-                    << "m " << m << " i0 " << i0 << " t " << t << " (" << r << ", " << c << ") level " << level;
-              } else {
-                ASSERT_TRUE(std::isnan(G(r, c))) << "written outside the lower triangle: (" << r << ", " << c << ")";
-              }
+    std::vector<std::pair<int, int>> blocks;  // (i0, t): starts anywhere in a panel, and blocks ending at row n - 1
+    for (int i0 = 0; i0 < 18; ++i0)
+      for (const int t : {1, 2, 3, 4, 5, 7, 8, 9, 15, 18, 20}) blocks.emplace_back(i0, t);
+    for (int t = 1; t <= 20; ++t) blocks.emplace_back(n - t, t);  // the last, partly filled panel (NaN padding)
+    for (const auto& [i0, t] : blocks) {
+      const auto results = under_each_isa([&] {
+        MatrixXd G = MatrixXd::Constant(ldG, ldG, nan);
+        block_gram(packed.data(), m, m + 3, i0, t, G.data(), ldG);
+        return G;
+      });
+      const MatrixXd Wb = W.middleRows(i0, t);
+      const MatrixXd ref = Wb * Wb.transpose();
+      for (size_t level = 0; level < results.size(); ++level) {
+        const MatrixXd& G = results[level];
+        for (int c = 0; c < ldG; ++c) {
+          for (int r = 0; r < ldG; ++r) {
+            if (r < t && c <= r) {
+              ASSERT_NEAR(G(r, c), ref(r, c), 1e-12 * (1.0 + std::abs(ref(r, c))))
+                  << "m " << m << " i0 " << i0 << " t " << t << " (" << r << ", " << c << ") level " << level;
+            } else {
+              ASSERT_TRUE(std::isnan(G(r, c))) << "written outside the lower triangle: (" << r << ", " << c
+                                               << "), m " << m << " i0 " << i0 << " t " << t << " level " << level;
             }
           }
-          for (int c = 0; c < t; ++c)
-            for (int r = c; r < t; ++r)
-              ASSERT_EQ(std::memcmp(&G(r, c), &results[0](r, c), sizeof(double)), 0) << "level " << level;
         }
+        for (int c = 0; c < t; ++c)
+          for (int r = c; r < t; ++r)
+            ASSERT_EQ(std::memcmp(&G(r, c), &results[0](r, c), sizeof(double)), 0) << "level " << level;
       }
     }
   }

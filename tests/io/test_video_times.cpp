@@ -7,8 +7,12 @@ extern "C" {
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
 #include <string>
 #include <vector>
 
@@ -73,7 +77,10 @@ std::vector<ImageFrame> drain_images(Source& src) {
 class VideoTimes : public ::testing::Test {
  protected:
   void write(const std::vector<std::int64_t>& pts_ms) {
-    if (!write_mkv(video, pts_ms)) GTEST_SKIP() << "this FFmpeg cannot write an MJPEG Matroska file";
+    ASSERT_TRUE(write_mkv(video, pts_ms)) << "libavformat could not write " << video;
+    write_calibration();
+  }
+  void write_calibration() {
     write_text(dir / "calibration.yaml", "cameras:\n  - name: cam0\n    width: 64\n    height: 48\n"
                                          "    intrinsics: [50, 50, 32, 24]\n");
   }
@@ -86,7 +93,7 @@ TEST_F(VideoTimes, AVariableFrameRateKeepsEachFramesPresentationTime) {
   // base's 1000 "fps" (frames 1 ms apart), and its "frame count" of 333 made the end look like a truncation.
   const std::vector<std::int64_t> pts = {0, 50, 150, 175, 300, 333, 400};
   write(pts);
-  if (IsSkipped()) return;
+  if (HasFatalFailure()) return;
   Dataset ds = open_dataset(video);
   EXPECT_EQ(ds.kind, "video");
   // The nominal rate: one over the median interval of the first frames (50, 100, 25, 125 ms: 50 ms).
@@ -102,7 +109,7 @@ TEST_F(VideoTimes, AVariableFrameRateKeepsEachFramesPresentationTime) {
 
 TEST_F(VideoTimes, TheRateOptionTimesFramesAtIOverTheRate) {
   write({0, 50, 150, 175, 300});
-  if (IsSkipped()) return;
+  if (HasFatalFailure()) return;
   DatasetOptions o;
   o.rate_hz = 10.0;
   Dataset ds = open_dataset(video, o);
@@ -115,7 +122,7 @@ TEST_F(VideoTimes, TheRateOptionTimesFramesAtIOverTheRate) {
 TEST_F(VideoTimes, ARepeatedPresentationTimeIsBadInput) {
   // Matroska allows equal times; a second frame at the same time cannot be placed in the stream.
   write({0, 50, 100, 100, 150, 200});
-  if (IsSkipped()) return;
+  if (HasFatalFailure()) return;
   {
     Dataset ds = open_dataset(video);
     EXPECT_THROW_WITH(drain_images(*ds.source), DataError, "phone.mkv#3: duplicate presentation time 100.000 ms");
@@ -133,11 +140,40 @@ TEST_F(VideoTimes, AFileCutShortIsStillATruncationAtAVariableRate) {
   std::vector<std::int64_t> pts;
   for (int i = 0; i < 60; ++i) pts.push_back(i * 40 + (i % 3 == 0 ? 7 : 0));  // 25 Hz with jitter: 2.4 s
   write(pts);
-  if (IsSkipped()) return;
+  if (HasFatalFailure()) return;
   const std::uintmax_t size = std::filesystem::file_size(video);
   std::filesystem::resize_file(video, size / 2);
   Dataset ds = open_dataset(video);
   EXPECT_THROW_WITH(drain_images(*ds.source), IoError, "phone.mkv: the video ends at frame");
+}
+
+// Review of 30 Nov: OpenCV 4.6 gives no presentation time (0) for the frames the H.264 decoder still holds when the
+// file ends (with B-frames); those came out as times going backwards, and with --rate as a truncation.
+TEST_F(VideoTimes, TheLastFramesOfAnH264FileKeepIncreasingTimes) {
+  video = dir / "clip.mp4";
+  {
+    cv::VideoWriter w(video, cv::VideoWriter::fourcc('a', 'v', 'c', '1'), 30.0, cv::Size(kWidth, kHeight), true);
+    if (!w.isOpened()) GTEST_SKIP() << "OpenCV has no H.264 encoder here";
+    cv::Mat img(kHeight, kWidth, CV_8UC3);
+    cv::RNG rng(5);
+    for (int i = 0; i < 120; ++i) {
+      rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+      w.write(img);
+    }
+  }
+  write_calibration();
+  for (const double rate : {0.0, 30.0}) {
+    DatasetOptions o;
+    o.rate_hz = rate;
+    Dataset ds = open_dataset(video, o);
+    EXPECT_DOUBLE_EQ(ds.rig.cameras[0].rate_hz, 30.0);
+    const std::vector<ImageFrame> frames = drain_images(*ds.source);
+    ASSERT_EQ(frames.size(), 120u) << "rate " << rate;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      EXPECT_NEAR(static_cast<double>(frames[i].t), static_cast<double>(i) * 1e9 / 30.0, 0.5e6) << "frame " << i;
+    }
+    EXPECT_EQ(ds.source->stats().problems(), 0u);
+  }
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "rtslam/calib/estimators.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/prefetch.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 #include "rtslam/sim/simulation.hpp"
@@ -41,6 +42,7 @@ void CheckOptions::validate() const {
   require_bound(min_excitation >= 0.0 && min_excitation <= 10.0, w, "min_excitation", min_excitation,
                 "in [0, 10] rad/s");
   require_bound(min_correlation >= 0.0 && min_correlation <= 1.0, w, "min_correlation", min_correlation, "in [0, 1]");
+  require_bound(threads >= 0 && threads <= 256, w, "threads", threads, "in [0, 256] (0: one per core, at most 4)");
   require_bound(cells_x >= 2 && cells_x <= 64, w, "cells_x", cells_x, "in [2, 64]");
   require_bound(cells_y >= 2 && cells_y <= 64, w, "cells_y", cells_y, "in [2, 64]");
   require_bound(patch_size >= 5 && patch_size <= 31 && patch_size % 2 == 1, w, "patch_size", patch_size,
@@ -386,8 +388,7 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
   ro.ransac_threshold = std::max(8.0 / f_px, 0.004);
   ro.sampson_threshold = std::max(1.5 / f_px, 0.0005);
   // The intervals' estimates are independent (each has its own generator, seeded by its index), so they run on
-  // o.threads threads with the same results on any number of them: the robust multi-start refinement is about half
-  // of the check's time (2.7 -> 1.8 s on V1_01 with 2 cores).
+  // o.threads threads with the same results on any number of them (docs/performance.md has the time it saves).
   std::vector<RelativeRotation> rotations(pairs.size());
   std::vector<double> feats(pairs.size());
   const auto estimate = [&](std::size_t i) {
@@ -403,7 +404,7 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
     Rng rng(17 + i);
     rotations[i] = estimate_relative_rotation(b0, b1, ro, rng);
   };
-  {
+  if (!pairs.empty()) {
     std::atomic<std::size_t> next{0};
     std::exception_ptr failure;
     std::mutex failure_mu;
@@ -414,16 +415,17 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
         } catch (...) {
           const std::lock_guard<std::mutex> lock(failure_mu);
           if (!failure) failure = std::current_exception();
+          next = pairs.size();  // the others stop at their next interval
         }
       }
     };
     const std::size_t wanted = o.threads > 0 ? static_cast<std::size_t>(o.threads)
                                              : std::min(4u, std::max(1u, std::thread::hardware_concurrency()));
-    const std::size_t helpers = std::min(wanted, pairs.size()) - 1;
-    std::vector<std::thread> threads;
-    for (std::size_t k = 0; k < helpers; ++k) threads.emplace_back(work);
-    work();
-    for (std::thread& t : threads) t.join();
+    {
+      std::vector<std::jthread> helpers;  // joined when the scope ends, also when starting one throws
+      for (std::size_t k = 1; k < std::min(wanted, pairs.size()); ++k) helpers.emplace_back(work);
+      work();
+    }
     if (failure) std::rethrow_exception(failure);
   }
   std::vector<VisualInterval> visual;
@@ -565,16 +567,15 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
 }
 
 CheckResult check_dataset_calibration(const std::string& spec, io::DatasetOptions dopt, int camera,
-                                      std::optional<TimeNs> t_d_configured, const CheckOptions& o) {
+                                      std::optional<TimeNs> t_d_configured, const CheckOptions& o,
+                                      int prefetch_threads) {
   const auto clock0 = std::chrono::steady_clock::now();
   dopt.cameras = {camera};
   dopt.use_imu = true;
   dopt.duration_s = 0.0;  // the check reads what it needs (start_offset_s is kept: the run's start)
   io::Dataset ds = io::open_dataset(spec, dopt);
-  // Images decoded ahead while the check tracks the ones before (the stream is the same; as the run reads it).
-  io::PrefetchOptions prefetch;
-  prefetch.threads = io::default_prefetch_threads();
-  if (prefetch.threads > 0) ds.source->prefetch(prefetch);
+  // Images decoded ahead while the check tracks the ones before, as the run reads them (the stream is the same).
+  io::start_prefetch(ds.source, prefetch_threads);
   CheckResult r = check_calibration(*ds.source, ds.rig, 0, t_d_configured.value_or(ds.rig.t_d), o);
   r.cost_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - clock0).count();
   return r;

@@ -111,8 +111,10 @@ CheckResult check_calibration(io::Source& source, const io::Rig& rig, int camera
                               const CheckOptions& options);
 
 /// Opens `spec` (io::open_dataset with `dataset_options`, cameras = {camera}, IMU on, from its start_offset_s to the
-/// end) and checks it; t_d_configured defaults to the rig's. cost_ms includes the opening.
+/// end) and checks it; t_d_configured defaults to the rig's. Images are decoded ahead in `prefetch_threads` threads
+/// as io::start_prefetch takes them (< 0: the default, 0: off; the run's --prefetch). cost_ms includes the opening.
 CheckResult check_dataset_calibration(const std::string& spec, io::DatasetOptions dataset_options, int camera,
-                                      std::optional<TimeNs> t_d_configured, const CheckOptions& options);
+                                      std::optional<TimeNs> t_d_configured, const CheckOptions& options,
+                                      int prefetch_threads = -1);
 
 }  // namespace rtslam::calib

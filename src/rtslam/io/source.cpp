@@ -507,7 +507,8 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
   const double fps = capture_->get(cv::CAP_PROP_FPS);
   const double n = capture_->get(cv::CAP_PROP_FRAME_COUNT);
   if (n > 0 && std::isfinite(n)) frame_count_ = static_cast<std::size_t>(n);
-  // OpenCV's count is the container's, or its duration x its frame rate: either way count / rate is the duration.
+  // OpenCV's count is the container's (MP4, AVI: then its frame rate is the mean one) or its duration x its frame
+  // rate (Matroska, WebM): either way count / rate is about the duration.
   if (frame_count_ && fps > 0 && std::isfinite(fps)) duration_s_ = static_cast<double>(*frame_count_) / fps;
   // How the container times its frames, from the first ones (kept, converted, for next()): presentation times when
   // the backend gives them (the first at 0, the others after it), else the container's frame rate. A given rate
@@ -517,30 +518,38 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
   Frame f;
   while (head_.size() < kProbeFrames && decode_frame(f)) head_.push_back(std::move(f));
   std::vector<double> intervals;
-  for (std::size_t k = 1; k < head_.size(); ++k) {
-    const double d = head_[k].pts_ms - head_[k - 1].pts_ms;
-    if (std::isfinite(d) && d > 0) intervals.push_back(d);
+  double first_ms = 0.0, last_ms = 0.0;
+  std::size_t timed = 0;  // probed frames with a time (the first, and the later ones with a positive time)
+  for (std::size_t k = 0; k < head_.size(); ++k) {
+    const double t = head_[k].pts_ms;
+    if (!std::isfinite(t) || (k > 0 && !(t > 0))) continue;
+    if (timed > 0 && t > last_ms) intervals.push_back(t - last_ms);
+    if (timed == 0) first_ms = t;
+    last_ms = std::max(last_ms, t);
+    ++timed;
   }
   const bool no_times = head_.size() >= 2 && std::all_of(head_.begin(), head_.end(), [](const Frame& h) {
     return h.pts_ms == 0.0 || !std::isfinite(h.pts_ms);
   });
   has_pts_ = !no_times && !head_.empty();
   use_pts_ = has_pts_ && !(rate_hz_ > 0);
-  double measured_hz = 0.0;  // the lower median interval's rate: with a few frames dropped, the camera's
+  // The lower median interval's rate (with a few frames dropped, the camera's), and the mean one (a constant rate in a
+  // container of millisecond times: intervals of 33 and 34 ms at 30 Hz).
+  double median_hz = 0.0, mean_hz = 0.0;
   if (has_pts_ && !intervals.empty()) {
     const auto mid = intervals.begin() + static_cast<std::ptrdiff_t>((intervals.size() - 1) / 2);
     std::nth_element(intervals.begin(), mid, intervals.end());
-    measured_hz = 1e3 / *mid;
-    // A count that is the duration x a rate guessed from the time base (Matroska: 1000 "fps") is no count: the
-    // duration at the frames' own rate instead (the progress line's total).
-    if (duration_s_ > 0 && !(std::abs(fps - measured_hz) <= 0.25 * measured_hz)) {
-      frame_count_ = static_cast<std::size_t>(std::llround(duration_s_ * measured_hz));
+    median_hz = 1e3 / *mid;
+    mean_hz = 1e3 * static_cast<double>(intervals.size()) / (last_ms - first_ms);
+    // A rate many times the frames' own is one guessed from the time base (Matroska: 1000 "fps"), and the count made
+    // from it no count: the duration at the frames' own rate instead (the progress line's total).
+    if (duration_s_ > 0 && fps > 4.0 * median_hz) {
+      frame_count_ = static_cast<std::size_t>(std::llround(duration_s_ * median_hz));
     }
   }
   if (!(rate_hz_ > 0)) {
-    rate_hz_ = measured_hz > 0 ? measured_hz : fps;
-    // A constant rate: the container's, exact.
-    if (measured_hz > 0 && std::abs(fps - measured_hz) <= 0.01 * measured_hz) rate_hz_ = fps;
+    const bool container_rate = mean_hz > 0 && std::abs(fps - mean_hz) <= 0.01 * mean_hz;
+    rate_hz_ = container_rate || !(median_hz > 0) ? fps : median_hz;
   }
   if (!(rate_hz_ > 0) || !std::isfinite(rate_hz_)) {
     throw ConfigError(fmt::format("{}: the video does not state its frame rate: give the rate option", path));
@@ -600,7 +609,11 @@ std::optional<Measurement> VideoSource::next() {
       report_early_end();
       return std::nullopt;
     }
-    const double pts_ms = f.pts_ms;
+    double pts_ms = f.pts_ms;
+    // No time (OpenCV 4.6: the frames its decoder held at the end of the file): one nominal interval after the last.
+    if (has_pts_ && last_pts_ms_ && (!std::isfinite(pts_ms) || (pts_ms == 0.0 && *last_pts_ms_ > 0.0))) {
+      pts_ms = *last_pts_ms_ + 1e3 / rate_hz_;
+    }
     const std::size_t i = index_++;
     ImageFrame frame;
     frame.path = fmt::format("{}#{}", path_, i);
@@ -625,8 +638,10 @@ std::optional<Measurement> VideoSource::next() {
     }
     const auto t_frame = t ? add_checked(t0_, *t) : std::nullopt;
     if (!t_frame) {
-      throw DataError(fmt::format("{}: frame {} at {:g} Hz lies beyond the int64 nanosecond time range", path_, i,
-                                  rate_hz_));
+      throw DataError(use_pts_ ? fmt::format("{}: presentation time {:g} ms lies beyond the int64 nanosecond time "
+                                             "range", frame.path, pts_ms)
+                               : fmt::format("{}: frame {} at {:g} Hz lies beyond the int64 nanosecond time range",
+                                             path_, i, rate_hz_));
     }
     frame.t = *t_frame;
     if (has_pts_) last_pts_ms_ = pts_ms;

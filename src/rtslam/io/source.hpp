@@ -249,13 +249,14 @@ class IndexedSource : public Source {
   std::vector<std::size_t> decode_index_;      // with prefetch: images_[i] is decode_ahead_'s image decode_index_[i]
 };
 
-/// A video file read with OpenCV. Frame i has t = t0 + i / rate (rate from the option, else the container's fps).
-/// Frames are converted to grey.
-/// A video file read through OpenCV (FFmpeg first). Frame times: t0 + the container's presentation time of each frame
-/// (variable frame rates, as phones record, keep their real times), strictly increasing (a duplicate or backward time
-/// is bad input); or t0 + i / rate_hz when rate_hz > 0 is given, or when the backend gives no presentation times
-/// (every frame at 0) — then at the container's frame rate. rate_hz() is the nominal rate: the given one, else one
-/// over the median interval of the first frames' times, else the container's.
+/// A video file read through OpenCV (FFmpeg first), its frames converted to grey. Frame times: t0 + the container's
+/// presentation time of each frame (variable frame rates, as phones record, keep their real times), strictly
+/// increasing (a duplicate or backward time is bad input); or t0 + i / rate_hz when rate_hz > 0 is given, or when
+/// the backend gives no presentation times (every frame at 0) — then at the container's frame rate. OpenCV 4.6 gives
+/// no time (0) for the frames its decoder still held at the end of the file (H.264 with B-frames): each of those is
+/// placed one nominal interval after the one before. rate_hz() is the nominal rate: the given one; else the
+/// container's when the first frames' mean interval agrees with it within 1 %; else one over their lower median
+/// interval.
 class VideoSource : public Source {
  public:
   VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size, BadInputPolicy policy);
@@ -264,8 +265,6 @@ class VideoSource : public Source {
   const SourceStats& stats() const override { return stats_; }
   std::optional<std::size_t> image_count() const override { return frame_count_; }
   double rate_hz() const { return rate_hz_; }
-  /// Whether frames are timed by the container's presentation times (else i / rate_hz()).
-  bool presentation_times() const { return use_pts_; }
 
  private:
   struct Frame {

@@ -282,7 +282,8 @@ TEST(FilterKernels, BlockGramGivesTheGenericSumsOnEveryLevel) {
     for (int i0 = 0; i0 < 18; ++i0)
       for (const int t : {1, 2, 3, 4, 5, 7, 8, 9, 15, 18, 20}) blocks.emplace_back(i0, t);
     for (int t = 1; t <= 20; ++t) blocks.emplace_back(n - t, t);  // the last, partly filled panel (NaN padding)
-    for (const auto& [i0, t] : blocks) {
+    for (const auto& block : blocks) {
+      const int i0 = block.first, t = block.second;  // (a lambda below uses them: no structured binding)
       const auto results = under_each_isa([&] {
         MatrixXd G = MatrixXd::Constant(ldG, ldG, nan);
         block_gram(packed.data(), m, m + 3, i0, t, G.data(), ldG);

@@ -7,6 +7,7 @@ extern "C" {
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -18,6 +19,7 @@ extern "C" {
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
+#include "rtslam/io/camera_source.hpp"
 #include "rtslam/io/dataset.hpp"
 
 namespace rtslam::io {
@@ -174,6 +176,74 @@ TEST_F(VideoTimes, TheLastFramesOfAnH264FileKeepIncreasingTimes) {
     }
     EXPECT_EQ(ds.source->stats().problems(), 0u);
   }
+}
+
+// A given rate re-times the frames; the end is still judged in the file's own frames. A 10 fps file read at 100 Hz
+// ended "truncated" (its last frame 0.1 s before the container's duration, against a slack of 5 frames at 100 Hz),
+// and so did every pass of camera:FILE --rate 100 over it.
+TEST_F(VideoTimes, AGivenRateDoesNotMakeTheFilesEndATruncation) {
+  video = dir / "slow.avi";
+  constexpr int kFrames = 30;  // 3 s: below 5 s, the slack of 5 frames is larger than that of 2 % of the duration
+  {
+    cv::VideoWriter w(video, cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0,
+                      cv::Size(kWidth, kHeight), true);
+    ASSERT_TRUE(w.isOpened());
+    cv::Mat img(kHeight, kWidth, CV_8UC3);
+    cv::RNG rng(3);
+    for (int i = 0; i < kFrames; ++i) {
+      rng.fill(img, cv::RNG::UNIFORM, 0, 255);  // (noise: frames of a size that puts most of the file after the header)
+      w.write(img);
+    }
+  }
+  write_calibration();
+  DatasetOptions o;
+  o.rate_hz = 100.0;
+  {
+    Dataset ds = open_dataset(video, o);
+    const std::vector<ImageFrame> frames = drain_images(*ds.source);
+    ASSERT_EQ(frames.size(), static_cast<std::size_t>(kFrames));
+    EXPECT_EQ(frames.back().t, (kFrames - 1) * 10'000'000);
+    EXPECT_EQ(ds.source->stats().problems(), 0u);
+  }
+  // Cut short, the same file is still a truncation at the given rate.
+  std::filesystem::resize_file(video, std::filesystem::file_size(video) * 6 / 10);
+  Dataset cut = open_dataset(video, o);
+  EXPECT_THROW_WITH(drain_images(*cut.source), IoError, "slow.avi: the video ends at frame");
+}
+
+// camera:FILE (a video standing in for a live camera) releases each frame when its time in the file comes, by the
+// wall clock, and loops one nominal interval after the last frame. Before, it paced frames at OpenCV's rate, for
+// this file the Matroska time base's 1000 "fps": all ten frames within ~10 ms.
+TEST_F(VideoTimes, AVideoStandingInForACameraKeepsItsVariableIntervals) {
+  const std::vector<std::int64_t> pts = {0, 40, 60, 140, 160};
+  write(pts);
+  if (HasFatalFailure()) return;
+  CameraSource src(CameraSpec::parse(video), cv::Size(kWidth, kHeight), 0.0, BadInputPolicy::Error);
+  // The nominal rate: one over the lower median of 40, 20, 80, 20 ms.
+  EXPECT_NEAR(src.rate_hz(), 50.0, 1e-9);
+  std::vector<TimeNs> t;
+  std::vector<double> level;
+  for (int k = 0; k < 10; ++k) {
+    auto m = src.next();
+    ASSERT_TRUE(m.has_value());
+    const auto* f = std::get_if<ImageFrame>(&*m);
+    ASSERT_NE(f, nullptr);
+    t.push_back(f->t);
+    level.push_back(f->image.at<std::uint8_t>(10, 10));
+  }
+  EXPECT_EQ(src.loops(), 1u);
+  // Due times from the first frame: the file's times, then the second pass 160 + 20 ms after the first.
+  const std::vector<double> due_ms = {0, 40, 60, 140, 160, 180, 220, 240, 320, 340};
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const double dt_ms = 1e-6 * static_cast<double>(t[k] - t[0]);
+    // Never released early (the first frame's own decoding, a few ms, is the only slack); late by the machine's
+    // scheduling at most, loosely bounded.
+    EXPECT_GE(dt_ms, due_ms[k] - 5.0) << "frame " << k;
+    EXPECT_LE(dt_ms, due_ms[k] + 250.0) << "frame " << k;
+    EXPECT_NEAR(level[k], 40.0 * static_cast<double>(k % 5), 6.0) << "frame " << k;  // MJPEG is lossy
+  }
+  EXPECT_EQ(src.stats().images, 10u);
+  EXPECT_EQ(src.stats().problems(), 0u);
 }
 
 }  // namespace

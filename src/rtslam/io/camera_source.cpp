@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <thread>
+#include <variant>
 
 #include <fmt/format.h>
 #include <opencv2/videoio.hpp>
@@ -86,26 +87,46 @@ CameraSource::CameraSource(const CameraSpec& spec, cv::Size expected_size, doubl
     rate_hz_ = fps > 0.0 && std::isfinite(fps) ? fps : rate_hz_;
     return;
   }
-  capture_ = std::make_unique<cv::VideoCapture>(spec_.path);
-  if (!capture_->isOpened()) {
-    throw IoError(fmt::format("{}: cannot open the video standing in for a camera (unknown format or codec)",
-                              spec_.path));
-  }
-  if (!(rate_hz_ > 0.0)) rate_hz_ = capture_->get(cv::CAP_PROP_FPS);
-  if (!(rate_hz_ > 0.0) || !std::isfinite(rate_hz_)) {
-    throw ConfigError(fmt::format("{}: the video does not state its frame rate: give the rate option", spec_.path));
-  }
+  // The stand-in: the file's own reader (its errors name the file), frames at their presentation times or i / rate.
+  given_rate_hz_ = rate_hz_;
+  video_ = std::make_unique<VideoSource>(spec_.path, given_rate_hz_, 0, cv::Size(), policy);
+  rate_hz_ = video_->rate_hz();
 }
 
 CameraSource::~CameraSource() = default;
 
-bool CameraSource::grab_file(cv::Mat& raw) {
-  if (capture_->read(raw) && !raw.empty()) return true;
-  if (index_ == 0) throw IoError(fmt::format("{}: no frame could be read from the video", spec_.path));
-  // The end of the file: from its start again (reopened: not every backend can seek back).
-  capture_->open(spec_.path);
-  ++loops_;
-  return capture_->isOpened() && capture_->read(raw) && !raw.empty();
+const SourceStats& CameraSource::stats() const {
+  if (!video_) return stats_;
+  merged_ = stats_;
+  merged_.add_problems(passes_);
+  merged_.add_problems(video_->stats());
+  return merged_;
+}
+
+ImageFrame CameraSource::next_file_frame(TimeNs& due_ns) {
+  while (true) {
+    std::optional<Measurement> m = video_->next();
+    if (m) {
+      auto* f = std::get_if<ImageFrame>(&*m);
+      if (f == nullptr) continue;  // (a video holds images only)
+      if (!pass_first_t_) pass_first_t_ = f->t;
+      pass_last_t_ = f->t;
+      due_ns = *start_ns_ + pass_start_ns_ + (f->t - *pass_first_t_);
+      return std::move(*f);
+    }
+    if (!pass_first_t_) {
+      throw IoError(fmt::format("{}: no usable frame could be read from the video{}", spec_.path,
+                                loops_ == 0 ? "" : " on reading it again from its start"));
+    }
+    // The end of the file: from its start again (reopened: not every backend can seek back), one nominal interval
+    // after this pass's last frame.
+    passes_.add_problems(video_->stats());
+    video_.reset();
+    video_ = std::make_unique<VideoSource>(spec_.path, given_rate_hz_, 0, cv::Size(), reporter_.policy());
+    ++loops_;
+    pass_start_ns_ += (pass_last_t_ - *pass_first_t_) + from_seconds(1.0 / rate_hz_);
+    pass_first_t_.reset();
+  }
 }
 
 std::optional<Measurement> CameraSource::next() {
@@ -136,15 +157,14 @@ std::optional<Measurement> CameraSource::next() {
         continue;
       }
     } else {
-      // A device delivers a frame every 1/rate s: so does the stand-in.
-      if (start_ns_) {
-        const TimeNs due = *start_ns_ + from_seconds(static_cast<double>(index_) / rate_hz_);
-        const TimeNs now = steady_now_ns();
-        if (due > now) std::this_thread::sleep_for(std::chrono::nanoseconds(due - now));
-      }
-      if (!grab_file(raw)) throw IoError(fmt::format("{}: cannot read the video again from its start", spec_.path));
+      // A device delivers each frame when its time comes: so does the stand-in (its file decoded before the wait).
+      if (!start_ns_) start_ns_ = steady_now_ns();
+      TimeNs due = 0;
+      ImageFrame f = next_file_frame(due);
+      const TimeNs now = steady_now_ns();
+      if (due > now) std::this_thread::sleep_for(std::chrono::nanoseconds(due - now));
       grab_ns = steady_now_ns();
-      if (!start_ns_) start_ns_ = grab_ns;
+      raw = std::move(f.image);  // already 8-bit grey (to_grey8 below keeps it)
     }
     ImageFrame frame;
     frame.t = camera_frame_time(driver_ms, grab_ns, previous_ns_);

@@ -480,8 +480,10 @@ Dataset open_camera(const std::string& spec, const DatasetOptions& o) {
   ds.rig.cameras = {all.cameras.front()};
   ds.rig.imu.reset();  // no live IMU is read (docs/datasets.md "Live camera")
   const auto& c = ds.rig.cameras.front();
-  auto src = std::make_unique<CameraSource>(cam, cv::Size(c.width, c.height), o.rate_hz > 0.0 ? o.rate_hz : c.rate_hz,
-                                            o.bad_input);
+  // A device is asked for the calibration's rate unless --rate says otherwise; a file standing in for one keeps its
+  // own frame times (as video:FILE does) unless --rate is given.
+  const double rate_hz = o.rate_hz > 0.0 ? o.rate_hz : (cam.is_device ? c.rate_hz : 0.0);
+  auto src = std::make_unique<CameraSource>(cam, cv::Size(c.width, c.height), rate_hz, o.bad_input);
   ds.rig.cameras.front().rate_hz = src->rate_hz();
   ds.source = std::move(src);
   return ds;

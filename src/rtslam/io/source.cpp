@@ -547,10 +547,9 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
       frame_count_ = static_cast<std::size_t>(std::llround(duration_s_ * median_hz));
     }
   }
-  if (!(rate_hz_ > 0)) {
-    const bool container_rate = mean_hz > 0 && std::abs(fps - mean_hz) <= 0.01 * mean_hz;
-    rate_hz_ = container_rate || !(median_hz > 0) ? fps : median_hz;
-  }
+  const bool container_rate = mean_hz > 0 && std::abs(fps - mean_hz) <= 0.01 * mean_hz;
+  file_hz_ = container_rate || !(median_hz > 0) ? fps : median_hz;
+  if (!(rate_hz_ > 0)) rate_hz_ = file_hz_;
   if (!(rate_hz_ > 0) || !std::isfinite(rate_hz_)) {
     throw ConfigError(fmt::format("{}: the video does not state its frame rate: give the rate option", path));
   }
@@ -584,7 +583,9 @@ void VideoSource::report_early_end() {
   if (has_pts_) {
     if (duration_s_ <= 0 || !last_pts_ms_) return;
     const double end_s = *last_pts_ms_ * 1e-3;
-    if (end_s + std::max(5.0 / rate_hz_, 0.02 * duration_s_) >= duration_s_) return;
+    // (Slack in the file's own frames: a given rate only re-times them.)
+    const double frame_s = file_hz_ > 0 && std::isfinite(file_hz_) ? 1.0 / file_hz_ : 0.0;
+    if (end_s + std::max(5.0 * frame_s, 0.02 * duration_s_) >= duration_s_) return;
     end_reported_ = true;
     reporter_.report(&SourceStats::undecodable_images,
                      fmt::format("{}: the video ends at frame {} ({:.3f} s) of the {:.3f} s its container lists "
@@ -612,7 +613,7 @@ std::optional<Measurement> VideoSource::next() {
     double pts_ms = f.pts_ms;
     // No time (OpenCV 4.6: the frames its decoder held at the end of the file): one nominal interval after the last.
     if (has_pts_ && last_pts_ms_ && (!std::isfinite(pts_ms) || (pts_ms == 0.0 && *last_pts_ms_ > 0.0))) {
-      pts_ms = *last_pts_ms_ + 1e3 / rate_hz_;
+      pts_ms = *last_pts_ms_ + 1e3 / (file_hz_ > 0 && std::isfinite(file_hz_) ? file_hz_ : rate_hz_);
     }
     const std::size_t i = index_++;
     ImageFrame frame;

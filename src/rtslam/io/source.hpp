@@ -281,6 +281,7 @@ class VideoSource : public Source {
 
   std::string path_;
   double rate_hz_ = 0.0;
+  double file_hz_ = 0.0;  // the file's own nominal rate (rate_hz_ unless a rate was given)
   TimeNs t0_ = 0;
   cv::Size expected_size_;
   SourceStats stats_;

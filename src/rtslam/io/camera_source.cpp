@@ -3,7 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <thread>
+#include <mutex>
 #include <variant>
 
 #include <fmt/format.h>
@@ -89,17 +89,32 @@ CameraSource::CameraSource(const CameraSpec& spec, cv::Size expected_size, doubl
   }
   // The stand-in: the file's own reader (its errors name the file), frames at their presentation times or i / rate.
   given_rate_hz_ = rate_hz_;
-  video_ = std::make_unique<VideoSource>(spec_.path, given_rate_hz_, 0, cv::Size(), policy);
+  video_ = open_pass(nullptr);
   rate_hz_ = video_->rate_hz();
+}
+
+std::unique_ptr<VideoSource> CameraSource::open_pass(const SourceStats* before) const {
+  // The end of a pass is no truncation (it starts the next one); the problems of the earlier passes are counted on.
+  VideoSource::Options o;
+  o.judge_end = false;
+  o.continue_from = before;
+  return std::make_unique<VideoSource>(spec_.path, given_rate_hz_, 0, cv::Size(), reporter_.policy(), o);
+}
+
+void CameraSource::interrupt() {
+  {
+    std::lock_guard<std::mutex> lock(wait_mu_);
+    interrupted_ = true;
+  }
+  wait_cv_.notify_all();
 }
 
 CameraSource::~CameraSource() = default;
 
 const SourceStats& CameraSource::stats() const {
-  if (!video_) return stats_;
+  if (spec_.is_device) return stats_;
   merged_ = stats_;
-  merged_.add_problems(passes_);
-  merged_.add_problems(video_->stats());
+  merged_.add_problems(video_->stats());  // (every pass's: each counts on from the one before)
   return merged_;
 }
 
@@ -119,10 +134,8 @@ ImageFrame CameraSource::next_file_frame(TimeNs& due_ns) {
                                 loops_ == 0 ? "" : " on reading it again from its start"));
     }
     // The end of the file: from its start again (reopened: not every backend can seek back), one nominal interval
-    // after this pass's last frame.
-    passes_.add_problems(video_->stats());
-    video_.reset();
-    video_ = std::make_unique<VideoSource>(spec_.path, given_rate_hz_, 0, cv::Size(), reporter_.policy());
+    // after this pass's last frame. (Replaced once the new pass is open: a failure keeps the counts so far.)
+    video_ = open_pass(&video_->stats());
     ++loops_;
     pass_start_ns_ += (pass_last_t_ - *pass_first_t_) + from_seconds(1.0 / rate_hz_);
     pass_first_t_.reset();
@@ -161,8 +174,13 @@ std::optional<Measurement> CameraSource::next() {
       if (!start_ns_) start_ns_ = steady_now_ns();
       TimeNs due = 0;
       ImageFrame f = next_file_frame(due);
-      const TimeNs now = steady_now_ns();
-      if (due > now) std::this_thread::sleep_for(std::chrono::nanoseconds(due - now));
+      {
+        // Until the frame is due, or interrupt() (a stopped run need not wait out a long gap in the file).
+        std::unique_lock<std::mutex> lock(wait_mu_);
+        const std::chrono::steady_clock::time_point until{std::chrono::nanoseconds(due)};
+        wait_cv_.wait_until(lock, until, [this] { return interrupted_; });
+        if (interrupted_) return std::nullopt;
+      }
       grab_ns = steady_now_ns();
       raw = std::move(f.image);  // already 8-bit grey (to_grey8 below keeps it)
     }

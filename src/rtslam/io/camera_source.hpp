@@ -2,17 +2,20 @@
 // Live input (`rtslam run --dataset camera:N`, docs/datasets.md "Live camera"): a V4L2 camera read through OpenCV's
 // VideoCapture (V4L2 backend), or a video file standing in for one (`camera:FILE`: the file is played in a loop,
 // each frame released by the wall clock when its time in the file comes, as a device would deliver it; the tests use
-// it on machines without a camera). The stream is endless: a run ends with --stop-after (seconds of input), Ctrl-C, or a device error.
+// it on machines without a camera). The stream is endless: a run ends with --stop-after (seconds of input), Ctrl-C,
+// or a device error.
 //
-// Timestamps (TimeNs on std::chrono::steady_clock, i.e. CLOCK_MONOTONIC on Linux): for a device, the driver's
-// buffer timestamp when it is plausible (camera_frame_time below), else the steady clock right after the grab; for
-// the stand-in file, the steady clock when the frame is released. The stand-in reads the file through VideoSource:
-// its frames come at their presentation times (a variable frame rate keeps its intervals) or at i / rate when a rate
-// is given, each pass starting one nominal interval after the previous pass's last frame. Frames are converted to 8-bit grey (to_grey8). The calibration
-// (io::Rig, from --calibration: the existing loaders) gives the expected image size, which is asked of the device;
-// frames of another size are bad input (wrong_size_images). No IMU: a live IMU is not read (docs/datasets.md says
-// what exists for pairing one).
+// Timestamps (TimeNs on std::chrono::steady_clock, i.e. CLOCK_MONOTONIC on Linux): for a device, the driver's buffer
+// timestamp when it is plausible (camera_frame_time below), else the steady clock right after the grab; for the
+// stand-in file, the steady clock when the frame is released. The stand-in reads the file through VideoSource: its
+// frames come at their presentation times (a variable frame rate keeps its intervals) or at i / rate when a rate is
+// given, each pass starting one nominal interval after the previous pass's last frame. Frames are converted to 8-bit
+// grey (to_grey8). The calibration (io::Rig, from --calibration: the existing loaders) gives the expected image
+// size, which is asked of the device; frames of another size are bad input (wrong_size_images). No IMU: a live IMU
+// is not read (docs/datasets.md says what exists for pairing one).
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 
@@ -55,6 +58,9 @@ class CameraSource final : public Source {
   CameraSource& operator=(const CameraSource&) = delete;
 
   std::optional<Measurement> next() override;
+  /// The stand-in's wait for its next frame ends at once, and next() returns the end (a device's grab is not
+  /// interrupted: it delivers a frame every period).
+  void interrupt() override;
   /// The frames delivered and every problem met (the stand-in's: over all its passes through the file).
   const SourceStats& stats() const override;
   /// The rate the source delivers at (the device's reported rate; the stand-in's given rate, else the file's nominal
@@ -67,6 +73,8 @@ class CameraSource final : public Source {
   /// The stand-in's next frame (converted to grey by VideoSource) and the steady-clock time it is due at; a new pass
   /// from the file's start at its end. Throws IoError when a whole pass gave no frame.
   ImageFrame next_file_frame(TimeNs& due_ns);
+  /// A pass through the stand-in's file, counting on from the problems `before` (the previous pass's).
+  std::unique_ptr<VideoSource> open_pass(const SourceStats* before) const;
 
   CameraSpec spec_;
   cv::Size expected_size_;
@@ -76,8 +84,7 @@ class CameraSource final : public Source {
   BadInputReporter reporter_;
   std::unique_ptr<cv::VideoCapture> capture_;  // a device
   std::unique_ptr<VideoSource> video_;         // the stand-in's current pass through its file
-  SourceStats passes_;                         // the problems of the stand-in's finished passes
-  mutable SourceStats merged_;                 // stats() of the stand-in: its own, its passes' and the current one's
+  mutable SourceStats merged_;                 // stats() of the stand-in: its own and its passes' (video_'s)
   TimeNs pass_start_ns_ = 0;                   // the current pass's first frame: time after start_ns_
   std::optional<TimeNs> pass_first_t_;         // its time in the file
   TimeNs pass_last_t_ = 0;                     // the time in the file of the last frame of the current pass
@@ -86,6 +93,9 @@ class CameraSource final : public Source {
   int image_bits_ = 8;
   TimeNs previous_ns_ = 0;
   std::optional<TimeNs> start_ns_;  // the stand-in's pacing origin (steady clock when its first frame was due)
+  std::mutex wait_mu_;              // the stand-in's wait for a frame's time, ended by interrupt()
+  std::condition_variable wait_cv_;
+  bool interrupted_ = false;
 };
 
 }  // namespace rtslam::io

@@ -97,6 +97,7 @@ PrefetchSource::~PrefetchSource() {
     stop_ = true;
   }
   room_cv_.notify_all();
+  inner_->interrupt();  // a live source's wait for its next frame (the reader may be in it) ends now
   reader_.join();
 }
 

@@ -70,6 +70,8 @@ class PrefetchSource final : public Source {
   std::optional<Measurement> next() override;
   const SourceStats& stats() const override;
   std::optional<std::size_t> image_count() const override { return image_count_; }
+  /// Forwarded to the inner source (its reader thread may be waiting in it); the destructor does it too.
+  void interrupt() override { inner_->interrupt(); }
 
  private:
   struct Entry {

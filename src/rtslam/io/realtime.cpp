@@ -37,6 +37,7 @@ void RealtimeSource::stop() {
     stop_ = true;
   }
   changed_.notify_all();
+  if (inner_) inner_->interrupt();  // a live source waiting for its next frame (a gap in a stand-in file) returns now
   if (thread_.joinable()) thread_.join();
   std::lock_guard<std::mutex> lock(mutex_);
   stopped_ = true;

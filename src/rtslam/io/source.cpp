@@ -490,8 +490,14 @@ std::optional<Measurement> WindowSource::next() {
 }
 
 VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size,
-                         BadInputPolicy policy)
-    : path_(path), rate_hz_(rate_hz), t0_(t0), expected_size_(expected_size), reporter_(policy, stats_) {
+                         BadInputPolicy policy, const Options& options)
+    : path_(path),
+      rate_hz_(rate_hz),
+      t0_(t0),
+      expected_size_(expected_size),
+      reporter_(policy, stats_),
+      judge_end_(options.judge_end) {
+  if (options.continue_from != nullptr) stats_.add_problems(*options.continue_from);
   std::error_code fs_error;
   if (!fs::is_regular_file(path, fs_error)) throw IoError(fmt::format("{}: file not found", path));
   {
@@ -576,7 +582,7 @@ bool VideoSource::decode_frame(Frame& f) {
 }
 
 void VideoSource::report_early_end() {
-  if (end_reported_) return;
+  if (end_reported_ || !judge_end_) return;
   // The container says how many frames (or seconds) it holds: ending well before is a truncated or corrupt file, not
   // its end. Slack for counts that are estimates (MKV/WebM: duration x fps, audio included; variable frame rates): 5
   // frames or 2 %.

@@ -169,6 +169,9 @@ class Source {
   /// The stream is unchanged: the same measurements in the same order, bad input reported (or skipped) at the same
   /// point. False when the source cannot (it is then read as before); wrappers forward to their inner source.
   virtual bool prefetch(const PrefetchOptions& /*options*/) { return false; }
+  /// Asks a next() that waits for data in another thread (a live source pacing its frames) to return the end of the
+  /// stream now; next() returns the end from then on. Thread-safe. Sources that never wait ignore it.
+  virtual void interrupt() {}
 };
 
 /// A window [first + start_offset, first + start_offset + duration] of another stream (`first`: the time of its
@@ -181,6 +184,7 @@ class WindowSource final : public Source {
   const SourceStats& stats() const override { return inner_->stats(); }
   std::optional<std::size_t> image_count() const override;
   bool prefetch(const PrefetchOptions& options) override { return inner_->prefetch(options); }
+  void interrupt() override { inner_->interrupt(); }
 
  private:
   std::unique_ptr<Source> inner_;
@@ -256,10 +260,21 @@ class IndexedSource : public Source {
 /// no time (0) for the frames its decoder still held at the end of the file (H.264 with B-frames): each of those is
 /// placed one nominal interval after the one before. rate_hz() is the nominal rate: the given one; else the
 /// container's when the first frames' mean interval agrees with it within 1 %; else one over their lower median
-/// interval.
+/// interval. A file that ends well before the duration its container states is reported as truncated (judge_end).
 class VideoSource : public Source {
  public:
-  VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size, BadInputPolicy policy);
+  struct Options {
+    /// Report a file that ends well before its container's duration (off for a file played in a loop: its end only
+    /// starts the next pass).
+    bool judge_end = true;
+    /// Problems met before (earlier passes over the same file): counted on from, and warned about within the same
+    /// budget of warnings.
+    const SourceStats* continue_from = nullptr;
+  };
+  VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size, BadInputPolicy policy)
+      : VideoSource(path, rate_hz, t0, expected_size, policy, Options{}) {}
+  VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv::Size expected_size, BadInputPolicy policy,
+              const Options& options);
   ~VideoSource() override;
   std::optional<Measurement> next() override;
   const SourceStats& stats() const override { return stats_; }
@@ -292,6 +307,7 @@ class VideoSource : public Source {
   std::optional<std::size_t> frame_count_;
   double duration_s_ = 0.0;  // the container's (frame count / frame rate), 0 when unknown
   bool end_reported_ = false;
+  bool judge_end_ = true;
   bool has_pts_ = false;                         // the backend gives presentation times
   bool use_pts_ = false;                         // and the frames are timed by them (no rate given)
   std::deque<Frame> head_;                       // frames read ahead at opening (to see how they are timed)

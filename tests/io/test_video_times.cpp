@@ -263,7 +263,7 @@ ImageFrame next_image(Source& src) {
 // Review of 30 Nov: a stopped live run waited out the gap before the stand-in's next frame (the acquisition thread
 // slept in it while stop() joined that thread): 4 s for a 4 s gap, forever for a corrupt far-future time.
 TEST_F(VideoTimes, StoppingALiveRunEndsTheStandInsWaitForItsNextFrame) {
-  write({0, 40, 60000});  // a minute between the second frame and the third
+  write({0, 60000});  // a minute between the first frame and the second
   if (HasFatalFailure()) return;
   auto camera = std::make_unique<CameraSource>(CameraSpec::parse(video), cv::Size(kWidth, kHeight), 0.0,
                                                BadInputPolicy::Error);
@@ -271,13 +271,12 @@ TEST_F(VideoTimes, StoppingALiveRunEndsTheStandInsWaitForItsNextFrame) {
   ASSERT_EQ(start_prefetch(chain, 1), 1);  // as rtslam run reads a camera: prefetched, then released live
   RealtimeSource live(std::move(chain), 1.0, RealtimeSource::kDefaultMaxQueue, true);
   next_image(live);
-  next_image(live);
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the acquisition now waits for the third frame
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the acquisition now waits for the second frame
   const auto t0 = std::chrono::steady_clock::now();
   live.stop();
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
   EXPECT_FALSE(live.next().has_value());
-  EXPECT_EQ(live.stats().images, 2u);
+  EXPECT_EQ(live.stats().images, 1u);
 }
 
 // A stand-in's passes: bad frames are counted on every pass and the counts survive a pass that cannot be opened; the

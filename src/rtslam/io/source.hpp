@@ -169,8 +169,9 @@ class Source {
   /// The stream is unchanged: the same measurements in the same order, bad input reported (or skipped) at the same
   /// point. False when the source cannot (it is then read as before); wrappers forward to their inner source.
   virtual bool prefetch(const PrefetchOptions& /*options*/) { return false; }
-  /// Asks a next() that waits for data in another thread (a live source pacing its frames) to return the end of the
-  /// stream now; next() returns the end from then on. Thread-safe. Sources that never wait ignore it.
+  /// Asks a next() that waits in another thread for data a live source paces (a stand-in file's next frame) to
+  /// return the end of the stream now (wrappers may still hand out what they read before). Thread-safe. Sources that
+  /// never wait ignore it, and so does a camera device (its grab waits at most one frame period).
   virtual void interrupt() {}
 };
 

@@ -79,6 +79,16 @@ std::vector<ImageFrame> drain_images(Source& src) {
   return out;
 }
 
+// The next measurement of `src`, an image (an empty one, the test failed, otherwise).
+ImageFrame next_image(Source& src) {
+  std::optional<Measurement> m = src.next();
+  EXPECT_TRUE(m.has_value());
+  if (!m) return {};
+  auto* f = std::get_if<ImageFrame>(&*m);
+  EXPECT_NE(f, nullptr);
+  return f != nullptr ? std::move(*f) : ImageFrame{};
+}
+
 class VideoTimes : public ::testing::Test {
  protected:
   void write(const std::vector<std::int64_t>& pts_ms) {
@@ -229,12 +239,10 @@ TEST_F(VideoTimes, AVideoStandingInForACameraKeepsItsVariableIntervals) {
   std::vector<TimeNs> t;
   std::vector<double> level;
   for (int k = 0; k < 10; ++k) {
-    auto m = src.next();
-    ASSERT_TRUE(m.has_value());
-    const auto* f = std::get_if<ImageFrame>(&*m);
-    ASSERT_NE(f, nullptr);
-    t.push_back(f->t);
-    level.push_back(f->image.at<std::uint8_t>(10, 10));
+    const ImageFrame f = next_image(src);
+    ASSERT_FALSE(f.image.empty()) << "frame " << k;
+    t.push_back(f.t);
+    level.push_back(f.image.at<std::uint8_t>(10, 10));
   }
   EXPECT_EQ(src.loops(), 1u);
   // Due times from the first frame: the file's times, then the second pass 160 + 20 ms after the first.
@@ -249,15 +257,6 @@ TEST_F(VideoTimes, AVideoStandingInForACameraKeepsItsVariableIntervals) {
   }
   EXPECT_EQ(src.stats().images, 10u);
   EXPECT_EQ(src.stats().problems(), 0u);
-}
-
-ImageFrame next_image(Source& src) {
-  std::optional<Measurement> m = src.next();
-  EXPECT_TRUE(m.has_value());
-  if (!m) return {};
-  auto* f = std::get_if<ImageFrame>(&*m);
-  EXPECT_NE(f, nullptr);
-  return f != nullptr ? std::move(*f) : ImageFrame{};
 }
 
 // Review of 30 Nov: a stopped live run waited out the gap before the stand-in's next frame (the acquisition thread

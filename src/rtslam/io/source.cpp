@@ -526,17 +526,17 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
   std::vector<double> intervals;
   double first_ms = 0.0, last_ms = 0.0;
   std::size_t timed = 0;  // probed frames with a time (the first, and the later ones with a positive time)
+  bool any_time = false;  // a frame with a finite time other than 0
   for (std::size_t k = 0; k < head_.size(); ++k) {
     const double t = head_[k].pts_ms;
+    if (std::isfinite(t) && t != 0.0) any_time = true;
     if (!std::isfinite(t) || (k > 0 && !(t > 0))) continue;
     if (timed > 0 && t > last_ms) intervals.push_back(t - last_ms);
     if (timed == 0) first_ms = t;
     last_ms = std::max(last_ms, t);
     ++timed;
   }
-  const bool no_times = head_.size() >= 2 && std::all_of(head_.begin(), head_.end(), [](const Frame& h) {
-    return h.pts_ms == 0.0 || !std::isfinite(h.pts_ms);
-  });
+  const bool no_times = head_.size() >= 2 && !any_time;  // (the backend gives every frame time 0)
   has_pts_ = !no_times && !head_.empty();
   use_pts_ = has_pts_ && !(rate_hz_ > 0);
   // The lower median interval's rate (with a few frames dropped, the camera's), and the mean one (a constant rate in a

@@ -72,6 +72,10 @@ std::optional<calib::CheckResult> calibration_prepass(const std::string& dataset
     skipped = "simulated input: its calibration is exact";
     return std::nullopt;
   }
+  if (dataset_spec.rfind("camera:", 0) == 0) {
+    skipped = "live input: it cannot be read twice (check a recording of the rig with rtslam check-calibration)";
+    return std::nullopt;
+  }
   calib::CheckResult r;
   try {
     r = calib::check_dataset_calibration(dataset_spec, dataset_options, o.camera, calcheck_configured_offset(o),

@@ -436,10 +436,15 @@ void run_dataset(const RunOptions& ro) {
     std::cout << YAML::Dump(pipeline::to_yaml(o)) << '\n';
     return;
   }
-  if (ro.dataset.rfind("camera:", 0) == 0 && o.robot == "inertial") {
-    throw ConfigError(fmt::format("{}: a live camera streams no IMU, which slam/robot: inertial needs (docs/datasets.md, "
-                                  "\"Pairing with an IMU\")",
+  if (ro.dataset.rfind("camera:", 0) == 0 && o.robot == "inertial" && ro.input.imu_stream.empty()) {
+    throw ConfigError(fmt::format("{}: a live camera streams no IMU, which slam/robot: inertial needs: pair one with "
+                                  "--imu-stream (docs/datasets.md, \"Live camera with an IMU\")",
                                   ro.dataset));
+  }
+  if (!ro.input.imu_stream.empty() && o.robot != "inertial") {
+    throw ConfigError(fmt::format("--imu-stream {}: the configuration's robot is {}, which reads no IMU (slam/robot: "
+                                  "inertial)",
+                                  ro.input.imu_stream, o.robot));
   }
   prepare_out_dir(ro);          // an earlier run's outputs: refused, or removed with --force
   RunDisplays displays(ro, o);  // before the input: a port in use or a bad path fails at once
@@ -632,6 +637,10 @@ void run_dataset(const RunOptions& ro) {
       }
     }
     summary["dataset"] = {{"name", ds.name}, {"kind", ds.kind}, {"path", ds.path}};
+    if (!dopt.imu_stream.empty()) {
+      summary["dataset"]["imu_stream"] = {
+          {"path", dopt.imu_stream}, {"clock", dopt.imu_clock == io::ImuStreamClock::Host ? "host" : "device"}};
+    }
     summary["input"] = ds.source->stats().to_json();
     if (realtime != nullptr) {
       const io::RealtimeStats rs = realtime->realtime();
@@ -641,6 +650,7 @@ void run_dataset(const RunOptions& ro) {
                              {"images_processed", rs.images_taken},
                              {"images_dropped", rs.images_dropped},
                              {"images_left", rs.images_left},
+                             {"imu_samples", rs.imu_samples},  // released, all of them (never dropped)
                              {"max_lag_s", rs.max_lag_s},
                              {"mean_lag_s", rs.mean_lag_s},
                              {"reader_late_s", rs.reader_late_s}};
@@ -935,6 +945,15 @@ void register_run(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--bag-receive-time", opts->input.bag_receive_time,
                 "ROS bags: stamp measurements with the bag's receive times instead of the header stamps");
+  sub->add_option("--imu-stream", opts->input.imu_stream,
+                  "camera: inputs: a live IMU paired with the camera, as text lines 't[ns],w_x,w_y,w_z,a_x,a_y,a_z' "
+                  "from a FIFO, a serial device, a file or - (standard input); needs an inertial configuration and a "
+                  "calibration with the IMU (docs/datasets.md)");
+  sub->add_option_function<std::string>(
+         "--imu-clock",
+         [opts](const std::string& s) { opts->input.imu_clock = io::imu_stream_clock_from_string(s, "--imu-clock"); },
+         "--imu-stream: the clock of its times: host (this machine's CLOCK_MONOTONIC, default) or device (the IMU's "
+         "own clock, mapped onto the host's by the smallest delivery delay)");
   sub->add_flag("--quiet", opts->quiet, "No progress line");
   add_prefetch_options(*sub, opts->prefetch);
   sub->add_flag("--force", opts->force,
@@ -945,7 +964,7 @@ void register_run(CLI::App& app) {
     // The input options act on datasets only: on the simulator (or the points demo) they would be ignored silently.
     if (opts->dataset.empty() || opts->dataset.rfind("sim:", 0) == 0) {
       for (const char* flag : {"--bad-input", "--calibration", "--timestamps", "--max-imu-dropout", "--image-topic",
-                               "--imu-topic", "--bag-receive-time"}) {
+                               "--imu-topic", "--bag-receive-time", "--imu-stream", "--imu-clock"}) {
         if (sub->count(flag) > 0) {
           throw ConfigError(fmt::format("{} applies to --dataset runs (not the simulator or --points-demo)", flag));
         }
@@ -962,6 +981,12 @@ void register_run(CLI::App& app) {
     if (opts->points) throw ConfigError("--points applies to --points-demo only");
     if (opts->dataset.rfind("camera:", 0) == 0 && opts->realtime && *opts->realtime != 1.0) {
       throw ConfigError(fmt::format("--realtime {}: a live camera runs at its own clock (speed 1)", *opts->realtime));
+    }
+    if (opts->dataset.rfind("camera:", 0) != 0 && !opts->input.imu_stream.empty()) {
+      throw ConfigError("--imu-stream pairs a live IMU with a camera:N input only (a dataset brings its own IMU data)");
+    }
+    if (sub->count("--imu-clock") > 0 && opts->input.imu_stream.empty()) {
+      throw ConfigError("--imu-clock applies to --imu-stream only");
     }
     if (opts->view_hold_s && !opts->view) throw ConfigError("--view-hold applies to --view only");
     if (opts->overlay_every != 1 && !opts->overlays) throw ConfigError("--overlay-every applies to --overlays only");

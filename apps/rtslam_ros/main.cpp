@@ -11,10 +11,10 @@
 #include <fmt/format.h>
 
 #include "estimate.hpp"
-#include "live_source.hpp"
 #include "ros_bridge.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/live_source.hpp"
 #include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
@@ -40,12 +40,13 @@ int run(RosBridge& bridge) {
     throw ConfigError(
         fmt::format("{}: the configuration's robot is inertial but the calibration has no IMU", params.calibration));
   }
-  LiveSource::Options lo;
+  io::LiveSource::Options lo;
   lo.image_capacity = static_cast<std::size_t>(params.queue_size);
   lo.imu_capacity = static_cast<std::size_t>(params.imu_queue_size);
   lo.with_imu = inertial;
-  auto source = std::make_unique<LiveSource>(lo);
-  LiveSource& live = *source;
+  lo.log_name = "ros";
+  auto source = std::make_unique<io::LiveSource>(lo);
+  io::LiveSource& live = *source;
   ds.source = std::move(source);
   const Eigen::Isometry3d T_RS = ds.rig.cameras.front().T_RS;
 

@@ -3,14 +3,20 @@
 // simulated sequence. They run the rtslam executable.
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -18,6 +24,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+
+#include "rtslam/io/calibration.hpp"
 
 namespace {
 
@@ -202,6 +210,151 @@ TEST(CliLive, ATinySearchBudgetCutsTheSearchAndTheRunStillTracks) {
     hit += std::stoi(f[21]);
   }
   EXPECT_EQ(hit, b["search_budget"]["frames_hit"].get<int>());
+  fs::remove_all(d);
+}
+
+
+// A live camera paired with a live IMU stream (--imu-stream): the simulator's camera and IMU at rest (a constant pose,
+// its synthetic IMU with noise and biases), the video standing in for the camera and the IMU's samples written into a
+// FIFO at 200 Hz, stamped on CLOCK_MONOTONIC as a driver on the machine would. The run ends when the writer closes the
+// FIFO; the estimate must stay where the rig rests.
+TEST(CliLive, ACameraAndItsImuStreamThroughAFifoRunInertialSlamAtRest) {
+  const fs::path sim = simulated_sequence();
+  const fs::path d = fs::temp_directory_path() / "rtslam_test_cli_live_imu";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  // The handheld sequence's first pose held for 4 s, simulated with its IMU.
+  std::string pose;
+  {
+    std::ifstream gt(sim / "groundtruth.txt");
+    std::string line;
+    while (std::getline(gt, line) && (line.empty() || line[0] == '#')) {
+    }
+    pose = line.substr(line.find(' '));
+  }
+  ASSERT_FALSE(pose.empty());
+  {
+    std::ofstream tum(d / "static.txt");
+    for (int k = 0; k <= 80; ++k) tum << fmt::format("{:.2f}", 0.05 * k) << pose << '\n';
+  }
+  const fs::path rest = d / "sim";
+  const LiveResult simulated = run_cli(fmt::format("simulate --trajectory follow:{} --duration 3.5 --seed 5 --out {}",
+                                                   (d / "static.txt").string(), rest.string()));
+  ASSERT_EQ(simulated.code, 0) << simulated.out;
+  // The camera: the first rendered frame, 20 frames at 20 Hz (the rig does not move), looped by the stand-in.
+  std::vector<fs::path> pngs;
+  for (const auto& e : fs::directory_iterator(rest / "mav0" / "cam0" / "data")) pngs.push_back(e.path());
+  std::sort(pngs.begin(), pngs.end());
+  ASSERT_FALSE(pngs.empty());
+  const cv::Mat grey = cv::imread(pngs.front().string(), cv::IMREAD_GRAYSCALE);
+  ASSERT_FALSE(grey.empty());
+  const fs::path video = d / "camera.avi";
+  {
+    cv::Mat bgr;
+    cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+    cv::VideoWriter w(video.string(), cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 20.0,
+                      grey.size(), true);
+    ASSERT_TRUE(w.isOpened());
+    for (int k = 0; k < 20; ++k) w.write(bgr);
+  }
+  // The calibration: camera and IMU in one rig file.
+  const fs::path rig = d / "rig.yaml";
+  rtslam::io::write_rig_yaml(rig.string(),
+                     rtslam::io::load_euroc_folder_calibration((rest / "mav0").string(), {0},
+                                                               rtslam::io::FolderImu::Required));
+  // The IMU's readings, replayed at 200 Hz into the FIFO for 3 s.
+  std::vector<std::string> readings;
+  {
+    std::ifstream csv(rest / "mav0" / "imu0" / "data.csv");
+    std::string line;
+    while (std::getline(csv, line)) {
+      if (!line.empty() && line[0] != '#') readings.push_back(line.substr(line.find(',')));
+    }
+  }
+  ASSERT_GE(readings.size(), 600u);
+  const fs::path fifo = d / "imu.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::atomic<int> written{0};
+  std::thread writer([&] {
+    // Opened once rtslam has the FIFO open for reading (ENXIO before): at most 60 s.
+    int fd = -1;
+    for (int k = 0; k < 6000 && fd < 0; ++k) {
+      fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+      if (fd < 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (fd < 0) return;
+    ::fcntl(fd, F_SETFL, 0);  // blocking writes from here on
+    const auto start = std::chrono::steady_clock::now();
+    for (int k = 0; k < 600; ++k) {
+      std::this_thread::sleep_until(start + std::chrono::microseconds(5000 * k));
+      const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                           std::chrono::steady_clock::now().time_since_epoch())
+                           .count();
+      const std::string line = fmt::format("{}{}\n", now, readings[static_cast<std::size_t>(k)]);
+      if (::write(fd, line.data(), line.size()) != static_cast<ssize_t>(line.size())) break;
+      ++written;
+    }
+    ::close(fd);
+  });
+  const LiveResult r = run_cli(fmt::format("run --dataset camera:{} --calibration {} --imu-stream {} --config {} "
+                                           "--quiet --out {}",
+                                           video.string(), rig.string(), fifo.string(),
+                                           RTSLAM_SOURCE_DIR "/config/sim_mono_imu.yaml", (d / "out").string()));
+  writer.join();
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(written.load(), 600);
+  EXPECT_NE(r.out.find("the IMU stream ended (its writer closed it) after 600 lines"), std::string::npos) << r.out;
+  const nlohmann::json s = read_json(d / "out" / "summary.json");
+  EXPECT_EQ(s["dataset"]["kind"], "camera");
+  EXPECT_EQ(s["dataset"]["imu_stream"]["clock"], "host");
+  EXPECT_EQ(s["input"]["imu_samples"].get<int>(), 600);  // every sample read reached the filter
+  EXPECT_EQ(s["realtime"]["imu_samples"].get<int>(), 600);
+  EXPECT_GE(s["realtime"]["images_processed"].get<int>(), 30);  // about 60 in 3 s
+  EXPECT_EQ(s["health"]["final"], "ok");
+  // At rest: every estimated position within 5 cm of the first.
+  std::ifstream traj(d / "out" / "trajectory.txt");
+  std::string line;
+  std::vector<Eigen::Vector3d> p;
+  while (std::getline(traj, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream in(line);
+    double t = 0.0, x = 0.0, y = 0.0, z = 0.0;
+    in >> t >> x >> y >> z;
+    p.emplace_back(x, y, z);
+  }
+  ASSERT_GE(p.size(), 30u);
+  double drift = 0.0;
+  for (const auto& x : p) drift = std::max(drift, (x - p.front()).norm());
+  EXPECT_LT(drift, 0.05);
+  RecordProperty("drift_m", fmt::format("{:.4f}", drift));
+  fs::remove_all(d);
+}
+
+// The pairing's one-line errors: an IMU stream without an inertial configuration, with a non-live dataset, a
+// calibration without the IMU, a stream that does not exist.
+TEST(CliLive, ImuStreamErrorsAreOneLine) {
+  const fs::path sim = simulated_sequence();
+  const std::string camera_calibration = (sim / "mav0" / "cam0" / "sensor.yaml").string();
+  const fs::path d = fs::temp_directory_path() / "rtslam_test_cli_live_imu_errors";
+  fs::remove_all(d);
+  const std::string inertial = RTSLAM_SOURCE_DIR "/config/sim_mono_imu.yaml";
+  const auto expect_error = [&](const std::string& args, const std::string& message) {
+    const LiveResult r = run_cli(args + " --out " + (d / "x").string());
+    EXPECT_NE(r.code, 0) << args;
+    EXPECT_EQ(count_newlines(r.out), 1) << r.out;
+    EXPECT_NE(r.out.find(message), std::string::npos) << r.out;
+  };
+  expect_error(fmt::format("run --dataset camera:0 --calibration {} --imu-stream -", camera_calibration),
+               "--imu-stream -: the configuration's robot is constant_velocity, which reads no IMU");
+  expect_error(fmt::format("run --dataset euroc:{} --config {} --imu-stream -", sim.string(), inertial),
+               "--imu-stream pairs a live IMU with a camera:N input only");
+  expect_error(fmt::format("run --dataset camera:0 --calibration {} --config {}", camera_calibration, inertial),
+               "a live camera streams no IMU, which slam/robot: inertial needs: pair one with --imu-stream");
+  expect_error(fmt::format("run --dataset camera:0 --calibration {} --config {} --imu-stream -", camera_calibration,
+                           inertial),
+               camera_calibration + ": no IMU in this calibration, which --imu-stream needs");
+  expect_error(fmt::format("run --dataset camera:0 --calibration {} --imu-clock device", camera_calibration),
+               "--imu-clock applies to --imu-stream only");
   fs::remove_all(d);
 }
 

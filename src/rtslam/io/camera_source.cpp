@@ -17,11 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-TimeNs steady_now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 bool all_digits(const std::string& s) {
   if (s.empty() || s.size() > 3) return false;
   for (char c : s)
@@ -30,6 +25,11 @@ bool all_digits(const std::string& s) {
 }
 
 }  // namespace
+
+TimeNs steady_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
 
 CameraSpec CameraSpec::parse(const std::string& spec) {
   CameraSpec c;

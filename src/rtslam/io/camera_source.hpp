@@ -12,7 +12,7 @@
 // given, each pass starting one nominal interval after the previous pass's last frame. Frames are converted to 8-bit
 // grey (to_grey8). The calibration (io::Rig, from --calibration: the existing loaders) gives the expected image
 // size, which is asked of the device; frames of another size are bad input (wrong_size_images). No IMU: a live IMU
-// is not read (docs/datasets.md says what exists for pairing one).
+// stream is paired with it by LiveRigSource (live_rig.hpp).
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -35,6 +35,9 @@ struct CameraSpec {
   /// /dev/videoN path nor an existing file.
   static CameraSpec parse(const std::string& spec);
 };
+
+/// The steady clock now, in ns: the clock live frames (and a host-stamped IMU stream, imu_stream.hpp) are stamped on.
+TimeNs steady_now_ns();
 
 /// The timestamp of a frame grabbed at `grab_ns` (steady clock) whose driver reported `driver_ms` (OpenCV's
 /// CAP_PROP_POS_MSEC: with the V4L2 backend the v4l2_buffer timestamp, CLOCK_MONOTONIC for UVC and most drivers;

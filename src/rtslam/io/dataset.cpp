@@ -12,6 +12,7 @@
 #include "rtslam/core/log.hpp"
 #include "rtslam/core/yaml.hpp"
 #include "rtslam/io/camera_source.hpp"
+#include "rtslam/io/live_rig.hpp"
 #include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/io/text.hpp"
 #include "rtslam/io/trajectory_io.hpp"
@@ -478,14 +479,33 @@ Dataset open_camera(const std::string& spec, const DatasetOptions& o) {
   if (all.cameras.empty()) throw ConfigError(fmt::format("{}: calibration has no camera", o.calibration));
   ds.rig = all;
   ds.rig.cameras = {all.cameras.front()};
-  ds.rig.imu.reset();  // no live IMU is read (docs/datasets.md "Live camera")
+  const bool with_imu = o.use_imu && !o.imu_stream.empty();
+  if (with_imu && !all.imu) {
+    throw ConfigError(fmt::format("{}: no IMU in this calibration, which --imu-stream needs (the camera-IMU extrinsics "
+                                  "and the IMU's noise: an rtslam rig YAML with an imu block, or a Kalibr camchain "
+                                  "with its imu.yaml; docs/datasets.md)",
+                                  o.calibration));
+  }
+  if (!with_imu) ds.rig.imu.reset();  // no live IMU is read (docs/datasets.md "Live camera")
   const auto& c = ds.rig.cameras.front();
   // A device is asked for the calibration's rate unless --rate says otherwise; a file standing in for one keeps its
   // own frame times (as video:FILE does) unless --rate is given.
   const double rate_hz = o.rate_hz > 0.0 ? o.rate_hz : (cam.is_device ? c.rate_hz : 0.0);
   auto src = std::make_unique<CameraSource>(cam, cv::Size(c.width, c.height), rate_hz, o.bad_input);
   ds.rig.cameras.front().rate_hz = src->rate_hz();
-  ds.source = std::move(src);
+  if (!with_imu) {
+    ds.source = std::move(src);
+    return ds;
+  }
+  ImuStreamReader::Options ro;
+  ro.clock = o.imu_clock;
+  ro.range = ImuRange::from_full_scale(ds.rig.imu->gyro_saturation, ds.rig.imu->accel_saturation);
+  ro.rate_hz = ds.rig.imu->rate_hz;
+  ro.max_dropout = o.max_imu_dropout;
+  auto imu = std::make_unique<ImuStreamReader>(o.imu_stream, ro);
+  LiveSource::Options lo;
+  lo.policy = o.bad_input;
+  ds.source = std::make_unique<LiveRigSource>(std::move(src), std::move(imu), lo);
   return ds;
 }
 
@@ -582,6 +602,11 @@ Dataset open_dataset(const std::string& spec, const DatasetOptions& options) {
     }
   }
   if (kind.empty()) kind = detect_dataset_kind(path);
+  if (!options.imu_stream.empty() && kind != "camera") {
+    throw ConfigError(fmt::format("dataset '{}': --imu-stream pairs a live IMU with a camera:N input only (a {} "
+                                  "dataset brings its own IMU data)",
+                                  spec, kind));
+  }
   Dataset ds;
   if (kind == "camera") {
     ds = open_camera(path, options);

@@ -25,6 +25,7 @@
 
 #include "rtslam/core/trajectory.hpp"
 #include "rtslam/io/calibration.hpp"
+#include "rtslam/io/imu_stream.hpp"
 #include "rtslam/io/source.hpp"
 
 namespace rtslam::io {
@@ -45,6 +46,10 @@ struct DatasetOptions {
   std::vector<std::string> image_topics;
   std::string imu_topic = "/imu0";
   bool bag_receive_time = false;
+  // camera: inputs: a live IMU stream paired with the camera (imu_stream.hpp: a FIFO, a serial device, a file or "-";
+  // empty: none; read only when use_imu is set) and the clock of its times.
+  std::string imu_stream;
+  ImuStreamClock imu_clock = ImuStreamClock::Host;
 
   static constexpr double kMinRateHz = 1e-3, kMaxRateHz = 1e5;  // rate_hz, when given
   static constexpr int kMaxImuDropout = 1'000'000;

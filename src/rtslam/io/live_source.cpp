@@ -1,0 +1,164 @@
+#include "rtslam/io/live_source.hpp"
+
+#include <fmt/format.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/core/log.hpp"
+#include "rtslam/io/text.hpp"
+
+namespace rtslam::io {
+
+LiveSource::LiveSource(const Options& options)
+    : options_(options),
+      images_(options.image_capacity),
+      imu_(options.imu_capacity),
+      reporter_(options.policy, stats_) {
+  if (options.image_capacity == 0 || options.imu_capacity == 0) {
+    throw ConfigError(fmt::format("live source: queue sizes must be >= 1 (images {}, IMU {})", options.image_capacity,
+                                  options.imu_capacity));
+  }
+  if (!(options.max_image_wait_s >= 0.0)) {
+    throw ConfigError(fmt::format("live source: max_image_wait_s = {} must be >= 0", options.max_image_wait_s));
+  }
+}
+
+void LiveSource::report_locked(std::size_t SourceStats::*counter, const std::string& message, bool file_problem) {
+  try {
+    reporter_.report(counter, message, file_problem);
+  } catch (...) {  // the Error policy: the stream ends here
+    if (!error_) error_ = std::current_exception();
+    closed_ = true;
+  }
+}
+
+void LiveSource::push_image(ImageFrame frame) {
+  {
+    std::lock_guard lock(mutex_);
+    if (closed_) return;
+    if (last_image_t_ && frame.t <= *last_image_t_) {
+      const bool same = frame.t == *last_image_t_;
+      report_locked(same ? &SourceStats::duplicate_timestamps : &SourceStats::backwards_timestamps,
+                    fmt::format("{}: image stamp {} s {} (previous {} s)", frame.path, format_seconds(frame.t),
+                                same ? "repeats" : "goes backwards", format_seconds(*last_image_t_)),
+                    false);
+    } else {
+      last_image_t_ = frame.t;
+      if (images_.size() >= options_.image_capacity) {
+        images_.pop_front();
+        if (++dropped_images_ <= 10 || dropped_images_ % 100 == 0) {
+          logger(options_.log_name)->warn("the filter falls behind: {} image(s) dropped so far (queue of {})",
+                                          dropped_images_, options_.image_capacity);
+        }
+      }
+      images_.push_back({std::move(frame), Clock::now()});
+    }
+  }
+  changed_.notify_all();
+}
+
+void LiveSource::push_imu(const ImuSample& sample) {
+  {
+    std::lock_guard lock(mutex_);
+    if (closed_) return;
+    const auto at = [&] { return fmt::format("IMU sample at t = {} s", format_seconds(sample.t)); };
+    if (!sample.gyro.allFinite() || !sample.accel.allFinite()) {
+      report_locked(&SourceStats::non_finite, fmt::format("{}: non-finite value", at()), false);
+    } else if (last_imu_t_ && sample.t <= *last_imu_t_) {
+      const bool same = sample.t == *last_imu_t_;
+      report_locked(same ? &SourceStats::duplicate_timestamps : &SourceStats::backwards_timestamps,
+                    fmt::format("{}: stamp {} (previous {} s)", at(), same ? "repeats" : "goes backwards",
+                                format_seconds(*last_imu_t_)),
+                    false);
+    } else {
+      last_imu_t_ = sample.t;
+      if (imu_.size() >= options_.imu_capacity) {
+        imu_.pop_front();
+        if (++dropped_imu_ <= 10 || dropped_imu_ % 1000 == 0) {
+          logger(options_.log_name)->warn("the filter falls behind: {} IMU sample(s) dropped so far (queue of {})",
+                                          dropped_imu_, options_.imu_capacity);
+        }
+      }
+      imu_.push_back(sample);
+    }
+  }
+  changed_.notify_all();
+}
+
+void LiveSource::report_bad_image(const std::string& message) {
+  report_problem(&SourceStats::undecodable_images, message, true);
+}
+
+void LiveSource::report_problem(std::size_t SourceStats::*counter, const std::string& message, bool file_problem) {
+  {
+    std::lock_guard lock(mutex_);
+    if (closed_) return;
+    report_locked(counter, message, file_problem);
+  }
+  changed_.notify_all();
+}
+
+void LiveSource::fail(std::exception_ptr error) {
+  {
+    std::lock_guard lock(mutex_);
+    if (!error_ && !closed_) error_ = std::move(error);
+    closed_ = true;
+  }
+  changed_.notify_all();
+}
+
+void LiveSource::close() {
+  {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+  }
+  changed_.notify_all();
+}
+
+std::optional<Measurement> LiveSource::next() {
+  std::unique_lock lock(mutex_);
+  while (true) {
+    if (!imu_.empty() && (images_.empty() || imu_.front().t <= images_.front().frame.t)) {
+      ImuSample s = imu_.front();
+      imu_.pop_front();
+      ++stats_.imu_samples;
+      return s;
+    }
+    if (!images_.empty()) {
+      const QueuedImage& q = images_.front();
+      const auto deadline = q.arrived + std::chrono::duration_cast<Clock::duration>(
+                                            std::chrono::duration<double>(options_.max_image_wait_s));
+      const bool covered = !options_.with_imu || (last_imu_t_ && *last_imu_t_ >= q.frame.t);
+      if (covered || closed_ || Clock::now() >= deadline) {
+        ImageFrame frame = q.frame;
+        images_.pop_front();
+        ++stats_.images;
+        return frame;
+      }
+      changed_.wait_until(lock, deadline);
+      continue;
+    }
+    if (closed_) {
+      if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+      return std::nullopt;
+    }
+    changed_.wait(lock);
+  }
+}
+
+const SourceStats& LiveSource::stats() const {
+  std::lock_guard lock(mutex_);
+  consumer_stats_ = stats_;
+  return consumer_stats_;
+}
+
+std::size_t LiveSource::dropped_images() const {
+  std::lock_guard lock(mutex_);
+  return dropped_images_;
+}
+
+std::size_t LiveSource::dropped_imu_samples() const {
+  std::lock_guard lock(mutex_);
+  return dropped_imu_;
+}
+
+}  // namespace rtslam::io

@@ -1,0 +1,500 @@
+// The live input's parts: io::LiveSource (producer threads merged into one time-ordered stream; the ROS node and
+// the live camera–IMU rig feed it), io::ImuStreamReader (an IMU's text lines from a FIFO, as they arrive) and
+// io::LiveRigSource (a camera thread and an IMU-stream thread feeding a LiveSource).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <filesystem>
+#include <limits>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include "rtslam/core/error.hpp"
+#include "rtslam/io/imu_stream.hpp"
+#include "rtslam/io/live_rig.hpp"
+#include "rtslam/io/live_source.hpp"
+
+namespace rtslam::io {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+TimeNs now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+
+ImageFrame image_at(TimeNs t) {
+  ImageFrame f;
+  f.t = t;
+  f.image = cv::Mat(2, 2, CV_8UC1, cv::Scalar(static_cast<double>(t % 200)));
+  f.path = "test#" + std::to_string(t);
+  return f;
+}
+
+ImuSample imu_at(TimeNs t) {
+  ImuSample s;
+  s.t = t;
+  s.accel = Eigen::Vector3d(0.0, 0.0, 9.81);
+  return s;
+}
+
+/// (t, is image) of a measurement.
+std::pair<TimeNs, bool> tag(const std::optional<Measurement>& m) {
+  EXPECT_TRUE(m.has_value());
+  if (!m) return {-1, false};
+  return {time_of(*m), std::holds_alternative<ImageFrame>(*m)};
+}
+
+TEST(LiveSource, AnImageWaitsForTheImuSampleThatCoversIt) {
+  LiveSource::Options o;
+  o.with_imu = true;
+  o.max_image_wait_s = 30.0;
+  LiveSource src(o);
+  src.push_image(image_at(10));
+  src.push_imu(imu_at(5));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{5}, false));
+  std::thread late_imu([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    src.push_imu(imu_at(10));
+    src.push_imu(imu_at(15));
+  });
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{10}, false));  // IMU first at equal times
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{10}, true));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{15}, false));
+  late_imu.join();
+  src.close();
+  EXPECT_FALSE(src.next().has_value());
+  EXPECT_EQ(src.stats().images, 1u);
+  EXPECT_EQ(src.stats().imu_samples, 3u);
+}
+
+TEST(LiveSource, WithoutImuImagesGoThroughAtOnce) {
+  LiveSource src(LiveSource::Options{});
+  src.push_image(image_at(10));
+  src.push_image(image_at(20));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{10}, true));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{20}, true));
+}
+
+TEST(LiveSource, AnImageWaitsForTheImuAtMostTheMaximumWait) {
+  LiveSource::Options o;
+  o.with_imu = true;
+  o.max_image_wait_s = 0.05;
+  LiveSource src(o);
+  const auto start = std::chrono::steady_clock::now();
+  src.push_image(image_at(10));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{10}, true));
+  EXPECT_GE(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(45));
+}
+
+TEST(LiveSource, BadStampsAndValuesAreSkippedAndCounted) {
+  LiveSource::Options o;
+  o.with_imu = true;
+  LiveSource src(o);
+  src.push_imu(imu_at(5));
+  src.push_imu(imu_at(5));  // duplicate
+  src.push_imu(imu_at(3));  // backwards
+  ImuSample nan = imu_at(7);
+  nan.gyro.x() = std::numeric_limits<double>::quiet_NaN();
+  src.push_imu(nan);
+  src.push_imu(imu_at(20));
+  src.push_image(image_at(10));
+  src.push_image(image_at(10));  // duplicate
+  src.push_image(image_at(8));   // backwards
+  src.report_bad_image("/cam0/image_raw message seq 3: encoding 'mono16' is not supported");
+  src.close();
+  std::vector<std::pair<TimeNs, bool>> got;
+  while (auto m = src.next()) got.emplace_back(time_of(*m), std::holds_alternative<ImageFrame>(*m));
+  EXPECT_EQ(got, (std::vector<std::pair<TimeNs, bool>>{{5, false}, {10, true}, {20, false}}));
+  const SourceStats& s = src.stats();
+  EXPECT_EQ(s.duplicate_timestamps, 2u);
+  EXPECT_EQ(s.backwards_timestamps, 2u);
+  EXPECT_EQ(s.non_finite, 1u);
+  EXPECT_EQ(s.undecodable_images, 1u);
+  EXPECT_EQ(s.messages.size(), 6u);
+}
+
+TEST(LiveSource, AFullQueueDropsItsOldestElement) {
+  LiveSource::Options o;
+  o.image_capacity = 2;
+  o.imu_capacity = 1;
+  LiveSource src(o);
+  for (TimeNs t : {10, 20, 30}) src.push_image(image_at(t));
+  src.push_imu(imu_at(1));
+  src.push_imu(imu_at(2));
+  EXPECT_EQ(src.dropped_images(), 1u);
+  EXPECT_EQ(src.dropped_imu_samples(), 1u);
+  src.close();
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{2}, false));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{20}, true));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{30}, true));
+  EXPECT_FALSE(src.next().has_value());
+  src.push_image(image_at(40));  // after close: ignored
+  EXPECT_FALSE(src.next().has_value());
+}
+
+TEST(LiveSource, ProducerThreadsAndTheConsumerSeeOneTimeOrderedStream) {
+  LiveSource::Options o;
+  o.with_imu = true;
+  o.image_capacity = 1000;
+  o.imu_capacity = 10000;
+  o.max_image_wait_s = 30.0;
+  LiveSource src(o);
+  constexpr int kImages = 50;
+  constexpr int kImuPerImage = 10;
+  // The camera's messages arrive before the IMU samples that cover them (as when the IMU driver lags): the source
+  // holds each image until its IMU has come, so the consumer sees one time-ordered stream.
+  std::thread producers([&] {
+    std::thread image_thread([&] {
+      for (int k = 0; k < kImages; ++k) src.push_image(image_at(100 + 100 * k + 5));
+    });
+    image_thread.join();
+    std::thread imu_thread([&] {
+      for (int k = 0; k <= kImages * kImuPerImage; ++k) src.push_imu(imu_at(100 + 10 * k));
+    });
+    imu_thread.join();
+    src.close();
+  });
+  std::size_t images = 0, imu = 0;
+  TimeNs last = std::numeric_limits<TimeNs>::min();
+  bool ordered = true;
+  while (auto m = src.next()) {
+    ordered = ordered && time_of(*m) >= last;
+    last = time_of(*m);
+    (std::holds_alternative<ImageFrame>(*m) ? images : imu) += 1;
+  }
+  producers.join();
+  EXPECT_TRUE(ordered);
+  EXPECT_EQ(images, static_cast<std::size_t>(kImages));
+  EXPECT_EQ(imu, static_cast<std::size_t>(kImages * kImuPerImage + 1));
+}
+
+TEST(LiveSource, RefusesEmptyQueues) {
+  LiveSource::Options o;
+  o.image_capacity = 0;
+  EXPECT_THROW(LiveSource{o}, ConfigError);
+}
+
+TEST(LiveSource, UnderTheErrorPolicyTheFirstProblemEndsTheStreamAfterWhatCameBefore) {
+  LiveSource::Options o;
+  o.policy = BadInputPolicy::Error;
+  LiveSource src(o);
+  src.push_imu(imu_at(5));
+  src.push_image(image_at(6));
+  src.push_imu(imu_at(5));   // a repeated stamp: the stream ends here
+  src.push_imu(imu_at(10));  // ignored
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{5}, false));
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{6}, true));
+  try {
+    src.next();
+    FAIL() << "no error";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("stamp repeats"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(src.next().has_value());
+}
+
+TEST(LiveSource, AProducerFailureIsThrownAfterTheQueuedMeasurements) {
+  LiveSource src(LiveSource::Options{});
+  src.push_image(image_at(10));
+  src.fail(std::make_exception_ptr(IoError("/dev/video0: the camera stopped delivering frames")));
+  src.push_image(image_at(20));  // after the failure: ignored
+  EXPECT_EQ(tag(src.next()), std::make_pair(TimeNs{10}, true));
+  EXPECT_THROW(src.next(), IoError);
+}
+
+// ------------------------------------------------------------------------------------------------- ImuStreamReader
+
+/// A FIFO in a fresh folder (removed with it).
+struct Fifo {
+  fs::path dir, path;
+  explicit Fifo(const std::string& name) {
+    dir = fs::temp_directory_path() / ("rtslam_test_live_" + name);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    path = dir / "imu.fifo";
+    EXPECT_EQ(::mkfifo(path.c_str(), 0600), 0);
+  }
+  ~Fifo() { fs::remove_all(dir); }
+};
+
+/// Writes `text` to the FIFO (opened for writing: a reader must have it open), in pieces of `chunk` bytes `pause`
+/// apart, then closes it.
+void write_fifo(const fs::path& path, const std::string& text, std::size_t chunk = 1 << 20,
+                std::chrono::milliseconds pause = std::chrono::milliseconds(0)) {
+  const int fd = ::open(path.c_str(), O_WRONLY);
+  ASSERT_GE(fd, 0);
+  for (std::size_t i = 0; i < text.size(); i += chunk) {
+    const std::string piece = text.substr(i, chunk);
+    ASSERT_EQ(::write(fd, piece.data(), piece.size()), static_cast<ssize_t>(piece.size()));
+    if (pause.count() > 0) std::this_thread::sleep_for(pause);
+  }
+  ::close(fd);
+}
+
+std::vector<ImuSample> drain_imu(LiveSource& live) {
+  std::vector<ImuSample> out;
+  while (auto m = live.next()) {
+    if (auto* s = std::get_if<ImuSample>(&*m)) out.push_back(*s);
+  }
+  return out;
+}
+
+TEST(ImuStreamReader, ReadsHostStampedLinesFromAFifoUntilItsWriterClosesIt) {
+  Fifo fifo("host");
+  ImuStreamReader reader(fifo.path.string(), ImuStreamReader::Options{});
+  LiveSource live(LiveSource::Options{});
+  const TimeNs t0 = now_ns();
+  const std::string text = fmt::format(
+      "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],"
+      "a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n"
+      "{},0.1,0.2,0.3,9.1,0.1,-3.7\r\n"
+      "\n"
+      "{} 0.1 0.2 0.3 9.2 0.1 -3.6\n"
+      "{},0.1,0.2,x,9.2,0.1,-3.6\n"
+      "{},0.1,0.2,0.3,9.3,0.1,-3.5",  // the last line without its newline
+      t0, t0 + 5'000'000, t0 + 10'000'000, t0 + 15'000'000);
+  std::thread writer([&] { write_fifo(fifo.path, text, 7, std::chrono::milliseconds(1)); });
+  EXPECT_TRUE(reader.run(live));  // the writer closed the FIFO
+  writer.join();
+  live.close();
+  const std::vector<ImuSample> s = drain_imu(live);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(s[0].t, t0);
+  EXPECT_EQ(s[1].t, t0 + 5'000'000);
+  EXPECT_EQ(s[2].t, t0 + 15'000'000);
+  EXPECT_EQ(s[0].gyro, Eigen::Vector3d(0.1, 0.2, 0.3));
+  EXPECT_EQ(s[2].accel, Eigen::Vector3d(9.3, 0.1, -3.5));
+  EXPECT_EQ(live.stats().malformed_lines, 1u);
+  ASSERT_EQ(live.stats().messages.size(), 1u);
+  EXPECT_NE(live.stats().messages[0].find(fifo.path.string() + ":5: expected 7 numbers"), std::string::npos)
+      << live.stats().messages[0];
+  EXPECT_EQ(reader.lines(), 6);
+}
+
+TEST(ImuStreamReader, SamplesStampedOnAnotherClockAreAConfigurationError) {
+  Fifo fifo("clock");
+  ImuStreamReader reader(fifo.path.string(), ImuStreamReader::Options{});
+  LiveSource live(LiveSource::Options{});
+  std::thread writer([&] { write_fifo(fifo.path, "1000000,0,0,0,0,0,9.81\n"); });  // 1 ms after some epoch
+  try {
+    reader.run(live);
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("away from this machine's CLOCK_MONOTONIC"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--imu-clock device"), std::string::npos) << e.what();
+  }
+  writer.join();
+}
+
+TEST(ImuStreamReader, DeviceTimesKeepTheirIntervalsWhateverTheDeliveryDelay) {
+  Fifo fifo("device");
+  ImuStreamReader::Options o;
+  o.clock = ImuStreamClock::Device;
+  ImuStreamReader reader(fifo.path.string(), o);
+  LiveSource live(LiveSource::Options{});
+  // A device clock starting at 7 s, samples 5 ms apart, delivered in bursts (4 lines at once, 20 ms apart) and
+  // then one line of readings only (6 numbers: stamped when read).
+  std::string text;
+  for (int k = 0; k < 12; ++k) text += fmt::format("{},0,0,0,0,0,9.81\n", 7'000'000'000LL + k * 5'000'000LL);
+  const std::size_t line_length = text.size() / 12;
+  text += "0,0,0,0,0,9.81\n";
+  const TimeNs before = now_ns();
+  std::thread writer([&] { write_fifo(fifo.path, text, 4 * line_length, std::chrono::milliseconds(20)); });
+  EXPECT_TRUE(reader.run(live));
+  writer.join();
+  const TimeNs after = now_ns();
+  live.close();
+  const std::vector<ImuSample> s = drain_imu(live);
+  ASSERT_EQ(s.size(), 13u);
+  // Once the delay estimate has settled (after the first burst, whose lines were read at once), the device's 5 ms
+  // intervals are kept, and every stamp lies on the steady clock between the writing's start and end.
+  for (std::size_t k = 5; k < 12; ++k) EXPECT_EQ(s[k].t - s[k - 1].t, 5'000'000) << k;
+  for (const ImuSample& x : s) {
+    EXPECT_GE(x.t, before);
+    EXPECT_LE(x.t, after);
+  }
+  EXPECT_GT(s[12].t, s[11].t);
+  EXPECT_EQ(live.stats().problems(), 0u);
+}
+
+TEST(ImuStreamReader, RangeAndGapProblemsAreCountedUnderSkipAndStopTheStreamUnderError) {
+  const auto lines = [](TimeNs t0) {
+    return fmt::format("{0},0,0,0,0,0,9.81\n{1},0,0,0,0,0,9.81\n{2},0,0,0,0,0,5000\n{3},0,0,0,0,0,9.81\n", t0,
+                       t0 + 5'000'000, t0 + 10'000'000, t0 + 200'000'000);
+  };
+  ImuStreamReader::Options o;
+  o.range.accel_m_s2 = 160.0;
+  o.rate_hz = 200.0;
+  {
+    Fifo fifo("skip");
+    ImuStreamReader reader(fifo.path.string(), o);
+    LiveSource live(LiveSource::Options{});
+    const std::string text = lines(now_ns());
+    std::thread writer([&] { write_fifo(fifo.path, text); });
+    EXPECT_TRUE(reader.run(live));
+    writer.join();
+    live.close();
+    EXPECT_EQ(drain_imu(live).size(), 3u);  // the saturated one dropped; the one after the gap kept
+    EXPECT_EQ(live.stats().imu_saturated, 1u);
+    EXPECT_EQ(live.stats().imu_gaps, 1u);
+  }
+  {
+    Fifo fifo("error");
+    ImuStreamReader reader(fifo.path.string(), o);
+    LiveSource::Options lo;
+    lo.policy = BadInputPolicy::Error;
+    LiveSource live(lo);
+    const std::string text = lines(now_ns());
+    std::thread writer([&] { write_fifo(fifo.path, text); });
+    reader.run(live);
+    writer.join();
+    EXPECT_EQ(live.next().has_value(), true);
+    EXPECT_EQ(live.next().has_value(), true);
+    try {
+      live.next();
+      ADD_FAILURE() << "no error";
+    } catch (const DataError& e) {
+      EXPECT_NE(std::string(e.what()).find(fifo.path.string() + ":3: accelerometer"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(ImuStreamReader, InterruptEndsTheWaitForAWriterAtOnce) {
+  Fifo fifo("interrupt");
+  ImuStreamReader reader(fifo.path.string(), ImuStreamReader::Options{});
+  LiveSource live(LiveSource::Options{});
+  std::atomic<bool> returned{false};
+  bool ended = true;
+  std::thread t([&] {
+    ended = reader.run(live);  // no writer ever opens the FIFO
+    returned = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_FALSE(returned.load());
+  const auto start = Clock::now();
+  reader.interrupt();
+  t.join();
+  EXPECT_LT(Clock::now() - start, std::chrono::seconds(2));
+  EXPECT_FALSE(ended);
+}
+
+TEST(ImuStreamReader, AMissingStreamOrAFolderIsAOneLineErrorNamingIt) {
+  const fs::path missing = fs::temp_directory_path() / "rtslam_test_live_no_such_fifo";
+  fs::remove_all(missing);
+  try {
+    ImuStreamReader r(missing.string(), ImuStreamReader::Options{});
+    ADD_FAILURE() << "no error";
+  } catch (const IoError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(missing.string() + ": cannot open the IMU stream", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+  }
+  EXPECT_THROW(ImuStreamReader(fs::temp_directory_path().string(), ImuStreamReader::Options{}), IoError);
+  EXPECT_THROW(imu_stream_clock_from_string("gps", "--imu-clock"), ConfigError);
+}
+
+// --------------------------------------------------------------------------------------------------- LiveRigSource
+
+/// A camera delivering 2x2 frames stamped on the steady clock every `period` until interrupted.
+class FakeCamera final : public Source {
+ public:
+  explicit FakeCamera(std::chrono::milliseconds period) : period_(period) {}
+  std::optional<Measurement> next() override {
+    std::unique_lock lock(mutex_);
+    if (cv_.wait_for(lock, period_, [&] { return stop_; })) return std::nullopt;
+    ImageFrame f = image_at(now_ns());
+    f.path = "camera#" + std::to_string(++frames_);
+    return f;
+  }
+  const SourceStats& stats() const override { return stats_; }
+  void interrupt() override {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+  }
+
+ private:
+  std::chrono::milliseconds period_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  int frames_ = 0;
+  SourceStats stats_;
+};
+
+TEST(LiveRigSource, MergesTheCameraAndTheImuStreamInTimeOrderUntilTheImuStreamEnds) {
+  Fifo fifo("rig");
+  auto reader = std::make_unique<ImuStreamReader>(fifo.path.string(), ImuStreamReader::Options{});
+  LiveRigSource rig(std::make_unique<FakeCamera>(std::chrono::milliseconds(50)), std::move(reader),
+                    LiveSource::Options{});
+  // 200 Hz for 0.6 s, each sample written when its time comes.
+  std::thread writer([&] {
+    const int fd = ::open(fifo.path.c_str(), O_WRONLY);
+    ASSERT_GE(fd, 0);
+    const auto start = Clock::now();
+    for (int k = 0; k < 120; ++k) {
+      std::this_thread::sleep_until(start + std::chrono::milliseconds(5 * k));
+      const std::string line = fmt::format("{},0,0,0,0,0,9.81\n", now_ns());
+      ASSERT_EQ(::write(fd, line.data(), line.size()), static_cast<ssize_t>(line.size()));
+    }
+    ::close(fd);
+  });
+  // Each sensor's measurements in time order, and each image after every IMU sample before its time (an image waits
+  // for the sample that covers it); IMU samples later than an image may come before it (it reached the merge after
+  // them: the inertial robot buffers them).
+  std::size_t images = 0, imu = 0;
+  TimeNs last_image = std::numeric_limits<TimeNs>::min(), last_imu = last_image;
+  int unordered = 0, late_imu = 0;
+  while (auto m = rig.next()) {
+    const TimeNs t = time_of(*m);
+    if (std::holds_alternative<ImageFrame>(*m)) {
+      unordered += t <= last_image ? 1 : 0;
+      last_image = t;
+      ++images;
+    } else {
+      unordered += t <= last_imu ? 1 : 0;
+      late_imu += t < last_image ? 1 : 0;
+      last_imu = t;
+      ++imu;
+    }
+  }
+  writer.join();
+  EXPECT_EQ(unordered, 0);
+  EXPECT_EQ(late_imu, 0);
+  EXPECT_EQ(imu, 120u);
+  EXPECT_GE(images, 5u);  // about 12 in 0.6 s; a loaded machine may be late
+  EXPECT_EQ(rig.stats().imu_samples, 120u);
+  EXPECT_EQ(rig.stats().images, images);
+}
+
+TEST(LiveRigSource, InterruptStopsBothThreadsWhileTheImuStreamHasNoWriter) {
+  Fifo fifo("rig_stop");
+  auto reader = std::make_unique<ImuStreamReader>(fifo.path.string(), ImuStreamReader::Options{});
+  auto rig = std::make_unique<LiveRigSource>(std::make_unique<FakeCamera>(std::chrono::milliseconds(20)),
+                                             std::move(reader), LiveSource::Options{});
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const auto start = Clock::now();
+  rig->interrupt();
+  std::size_t images = 0;
+  while (auto m = rig->next()) images += std::holds_alternative<ImageFrame>(*m) ? 1 : 0;
+  rig.reset();  // joins both threads
+  EXPECT_LT(Clock::now() - start, std::chrono::seconds(2));
+  EXPECT_LE(images, 30u);  // the images queued before the stop (none covered by an IMU)
+}
+
+}  // namespace
+}  // namespace rtslam::io

@@ -21,12 +21,13 @@ root=$(pwd)
 seconds=${1:-600}
 if (($# > 0)); then shift; fi
 all_targets=(yaml_config calib_euroc calib_kalibr calib_monoslam calib_kitti calib_rig trajectory dataset_lists
-  image_decode)
+  image_decode imu_stream)
 targets=("$@")
 ((${#targets[@]})) || targets=("${all_targets[@]}")
 # Inputs longer than the files each parser meets are wasted time.
 declare -A max_len=([yaml_config]=4096 [calib_euroc]=4096 [calib_kalibr]=8192 [calib_monoslam]=2048
-  [calib_kitti]=4096 [calib_rig]=4096 [trajectory]=8192 [dataset_lists]=8192 [image_decode]=16384)
+  [calib_kitti]=4096 [calib_rig]=4096 [trajectory]=8192 [dataset_lists]=8192 [image_decode]=16384
+  [imu_stream]=4096)
 for t in "${targets[@]}"; do
   [[ -n "${max_len[$t]:-}" ]] || { echo "fuzz: unknown target '$t' (known: ${all_targets[*]})" >&2; exit 2; }
 done

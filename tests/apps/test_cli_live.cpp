@@ -284,13 +284,14 @@ TEST(CliLive, ACameraAndItsImuStreamThroughAFifoRunInertialSlamAtRest) {
     }
     if (fd < 0) return;
     ::fcntl(fd, F_SETFL, 0);  // blocking writes from here on
+    // Each sample stamped with its due time (a driver stamps the sampling, not the writing: a stalled writer
+    // thread on a loaded machine must not look like an IMU gap).
     const auto start = std::chrono::steady_clock::now();
+    const auto start_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
     for (int k = 0; k < 600; ++k) {
       std::this_thread::sleep_until(start + std::chrono::microseconds(5000 * k));
-      const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::steady_clock::now().time_since_epoch())
-                           .count();
-      const std::string line = fmt::format("{}{}\n", now, readings[static_cast<std::size_t>(k)]);
+      const std::string line = fmt::format("{}{}\n", start_ns + 5'000'000LL * k, readings[static_cast<std::size_t>(k)]);
       if (::write(fd, line.data(), line.size()) != static_cast<ssize_t>(line.size())) break;
       ++written;
     }
@@ -309,7 +310,8 @@ TEST(CliLive, ACameraAndItsImuStreamThroughAFifoRunInertialSlamAtRest) {
   EXPECT_EQ(s["dataset"]["imu_stream"]["clock"], "host");
   EXPECT_EQ(s["input"]["imu_samples"].get<int>(), 600);  // every sample read reached the filter
   EXPECT_EQ(s["realtime"]["imu_samples"].get<int>(), 600);
-  EXPECT_GE(s["realtime"]["images_processed"].get<int>(), 30);  // about 60 in 3 s
+  EXPECT_GE(s["realtime"]["images_processed"].get<int>(), 20);  // about 60 in 3 s (fewer when the filter is slow)
+  EXPECT_EQ(s["input"]["live_dropped_imu_samples"].get<int>(), 0);
   EXPECT_EQ(s["health"]["final"], "ok");
   // At rest: every estimated position within 5 cm of the first.
   std::ifstream traj(d / "out" / "trajectory.txt");

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 
 #include <fcntl.h>
 #include <poll.h>
@@ -74,6 +75,8 @@ ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
       throw IoError(fmt::format("{}: cannot open the IMU stream ({}{})", path_, errno_text(e), hint));
     }
   }
+  struct stat st {};
+  is_device_ = ::fstat(fd_, &st) == 0 && S_ISCHR(st.st_mode) && ::isatty(fd_) == 1;
   if (::pipe2(wake_, O_CLOEXEC | O_NONBLOCK) != 0) {
     const int e = errno;
     ::close(fd_);
@@ -97,6 +100,9 @@ bool ImuStreamReader::run(LiveSource& live) {
   std::string pending;
   char buf[4096];
   bool skipping_long_line = false;
+  // A serial port is opened in the middle of its flow: the bytes before the first newline are a line's tail.
+  bool skipping_first_fragment = is_device_;
+  std::vector<ParsedLine>& batch = batch_;
   while (!interrupted_) {
     pollfd fds[2] = {{fd_, POLLIN, 0}, {wake_[0], POLLIN, 0}};
     const int r = ::poll(fds, 2, -1);
@@ -107,22 +113,24 @@ bool ImuStreamReader::run(LiveSource& live) {
     if (interrupted_ || (fds[1].revents & POLLIN) != 0) return false;
     if ((fds[0].revents & (POLLIN | POLLHUP | POLLERR)) == 0) continue;
     const ssize_t n = ::read(fd_, buf, sizeof buf);
-    if (n < 0) {
-      if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) continue;
-      throw IoError(fmt::format("{}: reading the IMU stream failed ({})", path_, errno_text(errno)));
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) continue;
+    if (n < 0 || (n == 0 && is_device_)) {  // a serial device does not end: it hung up (unplugged) or failed
+      const std::string why = n < 0 ? errno_text(errno) : std::string("hung up");
+      throw IoError(fmt::format("{}: the IMU device stopped after {} lines ({}: unplugged?)", path_, line_, why));
     }
     const TimeNs read_ns = steady_now_ns();
-    if (n == 0) {  // the writer closed the stream (or a file's end): a last line without its newline counts
-      if (!pending.empty() && !skipping_long_line) handle_line(pending, read_ns, live);
-      return true;
-    }
+    batch.clear();
     for (ssize_t k = 0; k < n; ++k) {
       const char c = buf[k];
       if (c == '\n') {
-        if (!skipping_long_line) handle_line(pending, read_ns, live);
+        if (skipping_first_fragment) {
+          skipping_first_fragment = false;
+        } else if (!skipping_long_line) {
+          parse_line(pending, live, batch);
+        }
         skipping_long_line = false;
         pending.clear();
-      } else if (!skipping_long_line) {
+      } else if (!skipping_long_line && !skipping_first_fragment) {
         pending.push_back(c);
         if (pending.size() > kMaxLineLength) {  // no newline in sight: not a text IMU stream (or a wrong baud rate)
           ++line_;
@@ -136,11 +144,16 @@ bool ImuStreamReader::run(LiveSource& live) {
         }
       }
     }
+    // The writer closed the stream (a FIFO's, standard input's or a file's end): a last line without its newline
+    // counts.
+    if (n == 0 && !pending.empty() && !skipping_long_line && !skipping_first_fragment) parse_line(pending, live, batch);
+    push_batch(batch, read_ns, live);
+    if (n == 0) return true;
   }
   return false;
 }
 
-void ImuStreamReader::handle_line(const std::string& raw, TimeNs read_ns, LiveSource& live) {
+void ImuStreamReader::parse_line(const std::string& raw, LiveSource& live, std::vector<ParsedLine>& batch) {
   ++line_;
   std::string_view line = trim(raw);
   if (!line.empty() && line.back() == '\r') line = trim(line.substr(0, line.size() - 1));
@@ -154,62 +167,89 @@ void ImuStreamReader::handle_line(const std::string& raw, TimeNs read_ns, LiveSo
     return;
   }
   seen_data_line_ = true;
-  const bool timeless = options_.clock == ImuStreamClock::Device && v.size() == 6;
-  if (!numbers || !(v.size() == 7 || timeless) || (v.size() == 7 && !t_is_int)) {
-    const char* or_six = options_.clock == ImuStreamClock::Device ? " (or the 6 readings)" : "";
+  if (!numbers || v.size() != 7 || !t_is_int) {
     live.report_problem(&SourceStats::malformed_lines,
-                        fmt::format("{}:{}: expected 7 numbers 'timestamp [ns], w_x, w_y, w_z, a_x, a_y, a_z'{}, got "
+                        fmt::format("{}:{}: expected 7 numbers 'timestamp [ns], w_x, w_y, w_z, a_x, a_y, a_z', got "
                                     "'{}'",
-                                    path_, line_, or_six, std::string(line.substr(0, 200))),
+                                    path_, line_, std::string(line.substr(0, 200))),
                         true);
     return;
   }
-  ImuSample s;
-  const std::size_t o = timeless ? 0 : 1;
-  s.gyro = Eigen::Vector3d(v[o], v[o + 1], v[o + 2]);
-  s.accel = Eigen::Vector3d(v[o + 3], v[o + 4], v[o + 5]);
-  if (options_.clock == ImuStreamClock::Host) {
-    s.t = t_int;
-    if (!checked_clock_) {
-      checked_clock_ = true;
-      const double skew_s = to_seconds(read_ns - s.t);
-      if (!(std::abs(skew_s) <= kMaxHostSkewS)) {
-        throw ConfigError(fmt::format(
-            "{}:{}: the first sample's time {} s is {:.3g} s away from this machine's CLOCK_MONOTONIC ({} s) when it "
-            "was read: stamp the samples with clock_gettime(CLOCK_MONOTONIC) in ns, or give --imu-clock device",
-            path_, line_, format_seconds(s.t), skew_s, format_seconds(read_ns)));
+  ParsedLine p;
+  p.line = line_;
+  p.time = t_int;
+  p.sample.gyro = Eigen::Vector3d(v[1], v[2], v[3]);
+  p.sample.accel = Eigen::Vector3d(v[4], v[5], v[6]);
+  batch.push_back(p);
+}
+
+void ImuStreamReader::push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns, LiveSource& live) {
+  if (batch.empty()) return;
+  if (options_.clock == ImuStreamClock::Host && !checked_clock_) {
+    checked_clock_ = true;
+    const ParsedLine& first = batch.front();
+    const double skew_s = to_seconds(read_ns - first.time);
+    if (!(std::abs(skew_s) <= kMaxHostSkewS)) {
+      throw ConfigError(fmt::format(
+          "{}:{}: the first sample's time {} s is {:.3g} s away from this machine's CLOCK_MONOTONIC ({} s) when it "
+          "was read: stamp the samples with clock_gettime(CLOCK_MONOTONIC) in ns, or give --imu-clock device",
+          path_, first.line, format_seconds(first.time), skew_s, format_seconds(read_ns)));
+    }
+  }
+  if (options_.clock == ImuStreamClock::Device) {
+    // The lines read at once were sent over time: the latest of them bounds the delay best. The smallest delay of
+    // the last two windows is the offset (an older one is forgotten: the two clocks drift apart).
+    TimeNs latest = std::numeric_limits<TimeNs>::min();
+    for (const ParsedLine& p : batch) latest = std::max(latest, p.time);
+    const TimeNs offset = read_ns - latest;
+    if (!window_start_ || read_ns - *window_start_ >= kOffsetWindowNs) {
+      previous_min_ = current_min_;
+      current_min_.reset();
+      window_start_ = read_ns;
+    }
+    if (!current_min_ || offset < *current_min_) current_min_ = offset;
+    offset_ns_ = previous_min_ ? std::min(*previous_min_, *current_min_) : *current_min_;
+  }
+  for (ParsedLine& p : batch) {
+    ImuSample& s = p.sample;
+    const std::string at = fmt::format("{}:{}", path_, p.line);
+    if (options_.clock == ImuStreamClock::Device) {
+      // The device's own order first (a counter that wrapped or restarted is bad input, not a time to mend).
+      if (last_raw_ && p.time <= *last_raw_) {
+        const bool same = p.time == *last_raw_;
+        live.report_problem(same ? &SourceStats::duplicate_timestamps : &SourceStats::backwards_timestamps,
+                            fmt::format("{}: device time {} ns {} (previous {} ns)", at, p.time,
+                                        same ? "repeats" : "goes backwards", *last_raw_));
+        continue;
+      }
+      last_raw_ = p.time;
+      s.t = p.time + offset_ns_;
+      // A delay estimate that just shrank would move the sample before the previous one: it is placed just after.
+      if (have_last_ && s.t <= last_t_) s.t = last_t_ + 1;
+    } else {
+      s.t = p.time;
+    }
+    if (const std::string problem = imu_range_problem(s, options_.range); !problem.empty()) {
+      live.report_problem(&SourceStats::imu_saturated, fmt::format("{}: {}", at, problem));
+      continue;
+    }
+    if (have_last_ && options_.rate_hz > 0.0 && s.t > last_t_) {
+      const double gap_s = to_seconds(s.t - last_t_);
+      const double missing = std::round(gap_s * options_.rate_hz) - 1.0;
+      if (missing > options_.max_dropout) {
+        live.report_problem(&SourceStats::imu_gaps,
+                            fmt::format("{}: IMU gap of {:.3f} s before t = {} s (~{:.0f} samples missing, more than "
+                                        "{})",
+                                        at, gap_s, format_seconds(s.t), missing, options_.max_dropout));
       }
     }
-  } else if (timeless) {
-    s.t = read_ns;
-  } else {
-    const TimeNs offset = read_ns - t_int;  // the delay plus the clocks' difference: its smallest value is the best
-    if (!have_offset_ || offset < offset_ns_) offset_ns_ = offset;
-    have_offset_ = true;
-    s.t = t_int + offset_ns_;
-  }
-  if (options_.clock == ImuStreamClock::Device && have_last_ && s.t <= last_t_) {
-    s.t = last_t_ + 1;  // read-time stamps of one burst, or a delay estimate that just shrank: kept in order
-  }
-  if (const std::string problem = imu_range_problem(s, options_.range); !problem.empty()) {
-    live.report_problem(&SourceStats::imu_saturated, fmt::format("{}:{}: {}", path_, line_, problem));
-    return;
-  }
-  if (have_last_ && options_.rate_hz > 0.0 && s.t > last_t_) {
-    const double gap_s = to_seconds(s.t - last_t_);
-    const double missing = std::round(gap_s * options_.rate_hz) - 1.0;
-    if (missing > options_.max_dropout) {
-      live.report_problem(&SourceStats::imu_gaps,
-                          fmt::format("{}:{}: IMU gap of {:.3f} s before t = {} s (~{:.0f} samples missing, more than "
-                                      "{})",
-                                      path_, line_, gap_s, format_seconds(s.t), missing, options_.max_dropout));
+    if (!have_last_ || s.t > last_t_) {
+      last_t_ = s.t;
+      have_last_ = true;
     }
+    live.push_imu(s);
   }
-  if (!have_last_ || s.t > last_t_) {
-    last_t_ = s.t;
-    have_last_ = true;
-  }
-  live.push_imu(s);
+  batch.clear();
 }
 
 }  // namespace rtslam::io

@@ -10,16 +10,20 @@
 //           clock_gettime(CLOCK_MONOTONIC)). The first sample must lie within kMaxHostSkewS of the clock when it is
 //           read, else ConfigError: the producer stamps on another clock, and every time would be wrong.
 //   Device: t is the IMU's own clock in ns (any origin: a microcontroller's counter), mapped onto the steady clock by
-//           the smallest delay seen so far between a sample's device time and the time its line was read (the
-//           transport's latency, found by its fastest deliveries; serial and USB links deliver in bursts, so the read
-//           time alone is a poor stamp). Lines of 6 numbers (no time) are stamped with the read time itself. Stamps
-//           never go backwards: when the delay estimate shrinks, the samples it would move before the previous one
-//           are placed 1 ns after it.
+//           the smallest delay between a sample's device time and the time it was read, over the last two windows of
+//           kOffsetWindowNs (the transport's latency at its fastest; older minima are forgotten, so the two clocks
+//           may drift apart). Lines read at once share a read time, and the latest of them bounds the delay: serial
+//           and USB links deliver in bursts, whose samples keep their device intervals. A device time that does not
+//           increase is bad input (a counter that wrapped or restarted); a delay estimate that shrinks never moves a
+//           stamp before the previous one (it is then placed 1 ns after it).
+// A serial device (a tty) is opened in the middle of its flow: the bytes up to the first newline are dropped. Its
+// end (a hang-up: unplugged) is an IoError; the end of a FIFO, standard input or a file ends the stream.
 // Checks, through the LiveSource the samples go to (its policy: skip and count, or stop with the error): malformed
 // lines (naming PATH:LINE), readings beyond the sensor's range (ImuRange), gaps of more than `max_dropout` missing
 // samples at the calibration's rate (no gap check when the rate is unknown), and LiveSource's own (order, NaN).
 #include <atomic>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -38,6 +42,7 @@ class ImuStreamReader {
  public:
   static constexpr double kMaxHostSkewS = 5.0;
   static constexpr std::size_t kMaxLineLength = 4096;
+  static constexpr TimeNs kOffsetWindowNs = 10 * kNsPerSecond;
   struct Options {
     ImuStreamClock clock = ImuStreamClock::Host;
     ImuRange range;
@@ -62,8 +67,15 @@ class ImuStreamReader {
   long lines() const { return line_; }
 
  private:
-  /// Parses one line (without its newline) and pushes its sample; `read_ns`: the steady clock when it was read.
-  void handle_line(const std::string& line, TimeNs read_ns, LiveSource& live);
+  struct ParsedLine {
+    long line = 0;
+    TimeNs time = 0;  // as written (host or device clock)
+    ImuSample sample;
+  };
+  /// Parses one line (without its newline) into `batch`; reports a malformed one.
+  void parse_line(const std::string& line, LiveSource& live, std::vector<ParsedLine>& batch);
+  /// Stamps and checks the lines of one read (read at `read_ns`, the steady clock) and pushes their samples.
+  void push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns, LiveSource& live);
 
   std::string path_;
   Options options_;
@@ -71,13 +83,17 @@ class ImuStreamReader {
   int wake_[2] = {-1, -1};  // a pipe whose write end interrupt() writes to: ends run()'s poll
   std::atomic<bool> interrupted_{false};
   long line_ = 0;
+  bool is_device_ = false;  // a serial device (tty)
   bool seen_data_line_ = false;
   bool checked_clock_ = false;
-  bool have_offset_ = false;
-  TimeNs offset_ns_ = 0;  // Device: steady clock − device clock (the smallest seen)
-  TimeNs last_t_ = 0;     // the previous sample's stamp (gap check, order of Device stamps)
+  // Device clock: steady clock − device clock, the smallest of the current and the previous window.
+  TimeNs offset_ns_ = 0;
+  std::optional<TimeNs> window_start_, current_min_, previous_min_;
+  std::optional<TimeNs> last_raw_;  // the previous sample's device time
+  TimeNs last_t_ = 0;               // the previous sample's stamp (gap check, order of Device stamps)
   bool have_last_ = false;
-  std::vector<double> fields_;  // handle_line's scratch
+  std::vector<double> fields_;      // parse_line's scratch
+  std::vector<ParsedLine> batch_;   // run()'s lines of one read
 };
 
 }  // namespace rtslam::io

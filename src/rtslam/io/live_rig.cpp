@@ -33,9 +33,13 @@ LiveRigSource::LiveRigSource(std::unique_ptr<Source> camera, std::unique_ptr<Imu
       live_.fail(std::current_exception());
     }
   });
-  camera_thread_ = std::thread([this] {
+  const auto read_camera = [this] {
     try {
-      while (auto m = camera_->next()) {
+      // A device's next() is not interrupted (it returns its next frame, at most a period later): the flag ends the
+      // loop.
+      while (!stop_) {
+        auto m = camera_->next();
+        if (!m) break;
         {
           std::lock_guard lock(mutex_);
           camera_stats_ = camera_->stats();
@@ -53,7 +57,14 @@ LiveRigSource::LiveRigSource(std::unique_ptr<Source> camera, std::unique_ptr<Imu
       return;
     }
     live_.close();  // the camera ended (interrupted)
-  });
+  };
+  try {
+    camera_thread_ = std::thread(read_camera);
+  } catch (...) {  // no thread: the IMU's is stopped before the error leaves the constructor
+    interrupt();
+    imu_thread_.join();
+    throw;
+  }
 }
 
 LiveRigSource::~LiveRigSource() {
@@ -63,6 +74,7 @@ LiveRigSource::~LiveRigSource() {
 }
 
 void LiveRigSource::interrupt() {
+  stop_ = true;
   imu_->interrupt();
   camera_->interrupt();
   live_.close();
@@ -71,11 +83,10 @@ void LiveRigSource::interrupt() {
 std::optional<Measurement> LiveRigSource::next() { return live_.next(); }
 
 const SourceStats& LiveRigSource::stats() const {
-  SourceStats s = live_.stats();
   std::lock_guard lock(mutex_);
+  merged_ = live_.stats();  // (its own lock inside: the camera thread takes mutex_ alone, never the other way)
   // The camera's images are those the merge yielded (it may have dropped or refused some: counted there).
-  s.add_problems(camera_stats_);
-  merged_ = std::move(s);
+  merged_.add_problems(camera_stats_);
   return merged_;
 }
 

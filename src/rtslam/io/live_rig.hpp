@@ -8,6 +8,7 @@
 // The stream ends when the IMU stream ends (its writer closed it; logged), when the camera fails (its error is thrown
 // by next() after the measurements queued before it), or on interrupt(). A run reads it through RealtimeSource
 // (live), which takes the newest image and never drops an IMU sample.
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -38,9 +39,10 @@ class LiveRigSource final : public Source {
   std::unique_ptr<Source> camera_;
   std::unique_ptr<ImuStreamReader> imu_;
   LiveSource live_;
+  std::atomic<bool> stop_{false};  // interrupt(): the camera thread's loop ends
   mutable std::mutex mutex_;
   SourceStats camera_stats_;          // the camera's, copied by its thread after each frame
-  mutable SourceStats merged_;        // stats()'s copy
+  mutable SourceStats merged_;        // stats()'s copy (under mutex_)
   std::thread camera_thread_, imu_thread_;
 };
 

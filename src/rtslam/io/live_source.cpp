@@ -45,9 +45,9 @@ void LiveSource::push_image(ImageFrame frame) {
       last_image_t_ = frame.t;
       if (images_.size() >= options_.image_capacity) {
         images_.pop_front();
-        if (++dropped_images_ <= 10 || dropped_images_ % 100 == 0) {
+        if (++stats_.live_dropped_images <= 10 || stats_.live_dropped_images % 100 == 0) {
           logger(options_.log_name)->warn("the filter falls behind: {} image(s) dropped so far (queue of {})",
-                                          dropped_images_, options_.image_capacity);
+                                          stats_.live_dropped_images, options_.image_capacity);
         }
       }
       images_.push_back({std::move(frame), Clock::now()});
@@ -73,9 +73,9 @@ void LiveSource::push_imu(const ImuSample& sample) {
       last_imu_t_ = sample.t;
       if (imu_.size() >= options_.imu_capacity) {
         imu_.pop_front();
-        if (++dropped_imu_ <= 10 || dropped_imu_ % 1000 == 0) {
+        if (++stats_.live_dropped_imu_samples <= 10 || stats_.live_dropped_imu_samples % 1000 == 0) {
           logger(options_.log_name)->warn("the filter falls behind: {} IMU sample(s) dropped so far (queue of {})",
-                                          dropped_imu_, options_.imu_capacity);
+                                          stats_.live_dropped_imu_samples, options_.imu_capacity);
         }
       }
       imu_.push_back(sample);
@@ -128,6 +128,15 @@ std::optional<Measurement> LiveSource::next() {
       const auto deadline = q.arrived + std::chrono::duration_cast<Clock::duration>(
                                             std::chrono::duration<double>(options_.max_image_wait_s));
       const bool covered = !options_.with_imu || (last_imu_t_ && *last_imu_t_ >= q.frame.t);
+      if (!covered && !closed_ && !last_imu_t_ && Clock::now() >= deadline) {
+        // No IMU sample yet after the wait: an inertial filter starts from the IMU, so the frame is of no use
+        // (released, it would be parked until the IMU came, and an IMU stream started late would fill the pipeline).
+        images_.pop_front();
+        if (stats_.live_dropped_images++ == 0) {
+          logger(options_.log_name)->warn("no IMU sample yet: camera frames are dropped until the IMU's first one");
+        }
+        continue;
+      }
       if (covered || closed_ || Clock::now() >= deadline) {
         ImageFrame frame = q.frame;
         images_.pop_front();
@@ -153,12 +162,12 @@ const SourceStats& LiveSource::stats() const {
 
 std::size_t LiveSource::dropped_images() const {
   std::lock_guard lock(mutex_);
-  return dropped_images_;
+  return stats_.live_dropped_images;
 }
 
 std::size_t LiveSource::dropped_imu_samples() const {
   std::lock_guard lock(mutex_);
-  return dropped_imu_;
+  return stats_.live_dropped_imu_samples;
 }
 
 }  // namespace rtslam::io

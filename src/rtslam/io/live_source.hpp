@@ -5,8 +5,10 @@
 //
 // Order: next() yields the oldest queued measurement, IMU first at equal times. When IMU samples are expected, an
 // image waits in the queue until an IMU sample at or after its time has arrived (so that the IMU samples before it
-// are yielded first), or for at most `max_image_wait_s` of wall time (the IMU stream lags or stopped; the
-// pipeline then waits for IMU data itself), or until the source is closed. The stream is time-ordered per sensor,
+// are yielded first), or for at most `max_image_wait_s` of wall time (the IMU stream lags or stopped; the pipeline
+// then waits for IMU data itself), or until the source is closed. An image still waiting when no IMU sample has come
+// at all is dropped (counted: an inertial filter starts from the IMU; an IMU stream started late would otherwise fill
+// the pipeline with frames it can only park). The stream is time-ordered per sensor,
 // not across them: an image that arrives after IMU samples later than it were yielded (a camera frame reaches the
 // host tens of ms after its exposure, an IMU sample within a millisecond) comes after those samples; the inertial
 // robot buffers IMU samples ahead of its time (slam/robot.hpp), so the image is still processed at its own time.
@@ -17,7 +19,7 @@
 // bad message) the offending item is dropped and counted; under Error the first problem ends the stream: next()
 // yields what was queued before it, then throws it (fail() does the same with a producer's own error). When a queue
 // is full its oldest element is dropped: the filter is slower than the sensors and keeping up matters more than old
-// data (counted: dropped_images(), dropped_imu_samples(), logged).
+// data (counted in SourceStats::live_dropped_images / live_dropped_imu_samples, logged).
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
@@ -85,8 +87,6 @@ class LiveSource final : public Source {
   std::exception_ptr error_;  // thrown by next() once the queues before it are drained
   std::optional<TimeNs> last_image_t_;  // newest accepted stamps
   std::optional<TimeNs> last_imu_t_;
-  std::size_t dropped_images_ = 0;
-  std::size_t dropped_imu_ = 0;
   bool closed_ = false;
 
   /// Counts a problem (the lock held); under Error the reporter's exception ends the stream (error_, closed_).

@@ -97,6 +97,8 @@ constexpr Counter kCounters[] = {
 
 void SourceStats::add_problems(const SourceStats& other) {
   for (const auto& c : kCounters) this->*c.field += other.*c.field;
+  live_dropped_images += other.live_dropped_images;
+  live_dropped_imu_samples += other.live_dropped_imu_samples;
   for (const auto& m : other.messages) {
     if (messages.size() < kMaxMessages) messages.push_back(m);
   }
@@ -111,6 +113,10 @@ std::string SourceStats::summary() const {
     problems_text += fmt::format("{}{} {}", problems_text.empty() ? "" : ", ", n, n == 1 ? c.singular : c.plural);
   }
   if (!problems_text.empty()) s += "; bad input (skipped or noted): " + problems_text;
+  if (live_dropped_images + live_dropped_imu_samples > 0) {
+    s += fmt::format("; dropped by the live queue: {} images, {} IMU samples", live_dropped_images,
+                     live_dropped_imu_samples);
+  }
   return s;
 }
 
@@ -119,6 +125,8 @@ nlohmann::json SourceStats::to_json() const {
   j["images"] = images;
   j["imu_samples"] = imu_samples;
   for (const auto& c : kCounters) j[c.key] = this->*c.field;
+  j["live_dropped_images"] = live_dropped_images;
+  j["live_dropped_imu_samples"] = live_dropped_imu_samples;
   j["messages"] = messages;
   return j;
 }

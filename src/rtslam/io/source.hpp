@@ -129,11 +129,17 @@ struct SourceStats {
   std::size_t imu_saturated = 0;  // IMU samples beyond the sensor's range (ImuRange): saturated or corrupt
   std::size_t unsupported_images = 0;  // images of a pixel type that cannot be converted to 8-bit grey faithfully
   std::size_t timestamp_jumps = 0;  // an image more than kMaxImageJumpS after the previous one of its camera
+  // Not bad input: what a live source (live_source.hpp) dropped from its queues, good data it had no room or no use
+  // for: images and IMU samples the filter fell too far behind to take, camera frames from before the IMU stream's
+  // first sample (an inertial filter cannot start on them).
+  std::size_t live_dropped_images = 0;
+  std::size_t live_dropped_imu_samples = 0;
   std::vector<std::string> messages;  // the first kMaxMessages problem messages
 
   static constexpr std::size_t kMaxMessages = 100;
   std::size_t problems() const;
-  /// Adds the problem counters and messages of `other` (e.g. problems met while parsing, before streaming).
+  /// Adds the problem counters, the live drops and the messages of `other` (e.g. problems met while parsing, before
+  /// streaming).
   void add_problems(const SourceStats& other);
   /// One line, e.g. "95 images, 29120 IMU samples; skipped: 2 duplicate timestamps, 1 undecodable image".
   std::string summary() const;

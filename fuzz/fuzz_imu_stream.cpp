@@ -40,7 +40,7 @@ void read_stream(const std::string& path, io::ImuStreamClock clock, io::BadInput
       const auto* s = std::get_if<io::ImuSample>(&*m);
       FUZZ_CHECK(s != nullptr, "an IMU stream yields IMU samples only");
       FUZZ_CHECK(s->gyro.allFinite() && s->accel.allFinite(), "finite readings");
-      FUZZ_CHECK(s->gyro.cwiseAbs().maxCoeff() <= 35.0 && s->accel.cwiseAbs().maxCoeff() <= 160.0, "within range");
+      FUZZ_CHECK(io::imu_range_problem(*s, o.range).empty(), "within range");
       FUZZ_CHECK(!last || s->t > *last, "strictly increasing times");
       last = s->t;
       ++samples;

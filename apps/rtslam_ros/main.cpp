@@ -76,11 +76,14 @@ int run(RosBridge& bridge) {
   filter.join();
 
   if (!params.trajectory.empty() && !result.estimate.poses.empty()) io::write_tum(params.trajectory, result.estimate);
-  logger("ros")->info(
-      "rtslam_ros: {} image(s) processed; input: {}; dropped (filter behind): {} image(s), {} IMU "
-      "sample(s)",
-      result.frames.size(), live.stats().summary(), live.dropped_images(), live.dropped_imu_samples());
-  if (data_error && live.stats().images == 0) {
+  const io::SourceStats input = live.stats();
+  logger("ros")->info("rtslam_ros: {} image(s) processed; input: {}", result.frames.size(), input.summary());
+  if (input.images == 0 && input.live_images_before_imu > 0) {
+    std::cerr << fmt::format("rtslam_ros: no IMU sample received on {}: {} image(s) dropped waiting for it\n",
+                             params.imu_topic, input.live_images_before_imu);
+    return 1;
+  }
+  if (data_error && input.images == 0) {
     // Stopped before the first image: nothing went wrong, there was nothing to do.
     logger("ros")->warn("rtslam_ros: no image received on {}", params.image_topic);
     return 0;

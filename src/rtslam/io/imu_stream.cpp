@@ -59,6 +59,7 @@ ImuStreamClock imu_stream_clock_from_string(const std::string& s, const std::str
 ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
     : path_(std::move(path)), options_(options) {
   if (path_.empty()) throw ConfigError("IMU stream: empty path (a FIFO, a serial device, a file, or - for stdin)");
+  skipping_first_fragment_ = false;
   if (path_ == "-") {
     fd_ = ::dup(STDIN_FILENO);
     if (fd_ < 0) throw IoError(fmt::format("-: cannot read standard input as the IMU stream ({})", errno_text(errno)));
@@ -77,6 +78,7 @@ ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
   }
   struct stat st {};
   is_device_ = ::fstat(fd_, &st) == 0 && S_ISCHR(st.st_mode) && ::isatty(fd_) == 1;
+  skipping_first_fragment_ = is_device_;  // opened in the middle of its flow: the first bytes are a line's tail
   if (::pipe2(wake_, O_CLOEXEC | O_NONBLOCK) != 0) {
     const int e = errno;
     ::close(fd_);
@@ -97,12 +99,7 @@ void ImuStreamReader::interrupt() {
 }
 
 bool ImuStreamReader::run(LiveSource& live) {
-  std::string pending;
   char buf[4096];
-  bool skipping_long_line = false;
-  // A serial port is opened in the middle of its flow: the bytes before the first newline are a line's tail.
-  bool skipping_first_fragment = is_device_;
-  std::vector<ParsedLine>& batch = batch_;
   while (!interrupted_) {
     pollfd fds[2] = {{fd_, POLLIN, 0}, {wake_[0], POLLIN, 0}};
     const int r = ::poll(fds, 2, -1);
@@ -114,43 +111,60 @@ bool ImuStreamReader::run(LiveSource& live) {
     if ((fds[0].revents & (POLLIN | POLLHUP | POLLERR)) == 0) continue;
     const ssize_t n = ::read(fd_, buf, sizeof buf);
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) continue;
-    if (n < 0 || (n == 0 && is_device_)) {  // a serial device does not end: it hung up (unplugged) or failed
-      const std::string why = n < 0 ? errno_text(errno) : std::string("hung up");
-      throw IoError(fmt::format("{}: the IMU device stopped after {} lines ({}: unplugged?)", path_, line_, why));
+    if (n < 0) {
+      throw IoError(fmt::format("{}: reading the IMU stream failed after {} lines ({}{})", path_, line_,
+                                errno_text(errno), is_device_ ? ": unplugged?" : ""));
+    }
+    if (n == 0 && is_device_) {
+      // A serial device does not end: it hung up (unplugged). A terminal in canonical mode also returns 0 for an
+      // end-of-file byte (0x04, e.g. in noise at a wrong baud rate): no hang-up then, reading goes on.
+      if ((fds[0].revents & POLLHUP) == 0) continue;
+      throw IoError(fmt::format("{}: the IMU device stopped after {} lines (hung up: unplugged?)", path_, line_));
     }
     const TimeNs read_ns = steady_now_ns();
-    batch.clear();
-    for (ssize_t k = 0; k < n; ++k) {
-      const char c = buf[k];
-      if (c == '\n') {
-        if (skipping_first_fragment) {
-          skipping_first_fragment = false;
-        } else if (!skipping_long_line) {
-          parse_line(pending, live, batch);
-        }
-        skipping_long_line = false;
-        pending.clear();
-      } else if (!skipping_long_line && !skipping_first_fragment) {
-        pending.push_back(c);
-        if (pending.size() > kMaxLineLength) {  // no newline in sight: not a text IMU stream (or a wrong baud rate)
-          ++line_;
-          live.report_problem(&SourceStats::malformed_lines,
-                              fmt::format("{}:{}: a line longer than {} characters (binary data, or a serial port at "
-                                          "the wrong baud rate?)",
-                                          path_, line_, kMaxLineLength),
-                              true);
-          skipping_long_line = true;
-          pending.clear();
-        }
-      }
+    if (n == 0) {  // the writer closed the stream (a FIFO's, standard input's or a file's end)
+      finish(read_ns, live);
+      return true;
     }
-    // The writer closed the stream (a FIFO's, standard input's or a file's end): a last line without its newline
-    // counts.
-    if (n == 0 && !pending.empty() && !skipping_long_line && !skipping_first_fragment) parse_line(pending, live, batch);
-    push_batch(batch, read_ns, live);
-    if (n == 0) return true;
+    feed(buf, static_cast<std::size_t>(n), read_ns, live);
   }
   return false;
+}
+
+void ImuStreamReader::feed(const char* data, std::size_t size, TimeNs read_ns, LiveSource& live) {
+  batch_.clear();
+  for (std::size_t k = 0; k < size; ++k) {
+    const char c = data[k];
+    if (c == '\n') {
+      if (skipping_first_fragment_) {
+        skipping_first_fragment_ = false;
+      } else if (!skipping_long_line_) {
+        parse_line(pending_, live, batch_);
+      }
+      skipping_long_line_ = false;
+      pending_.clear();
+    } else if (!skipping_long_line_ && !skipping_first_fragment_) {
+      pending_.push_back(c);
+      if (pending_.size() > kMaxLineLength) {  // no newline in sight: not a text IMU stream (or a wrong baud rate)
+        ++line_;
+        live.report_problem(&SourceStats::malformed_lines,
+                            fmt::format("{}:{}: a line longer than {} characters (binary data, or a serial port at "
+                                        "the wrong baud rate?)",
+                                        path_, line_, kMaxLineLength),
+                            true);
+        skipping_long_line_ = true;
+        pending_.clear();
+      }
+    }
+  }
+  push_batch(batch_, read_ns, live);
+}
+
+void ImuStreamReader::finish(TimeNs read_ns, LiveSource& live) {
+  batch_.clear();
+  if (!pending_.empty() && !skipping_long_line_ && !skipping_first_fragment_) parse_line(pending_, live, batch_);
+  pending_.clear();
+  push_batch(batch_, read_ns, live);
 }
 
 void ImuStreamReader::parse_line(const std::string& raw, LiveSource& live, std::vector<ParsedLine>& batch) {
@@ -185,10 +199,11 @@ void ImuStreamReader::parse_line(const std::string& raw, LiveSource& live, std::
 
 void ImuStreamReader::push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns, LiveSource& live) {
   if (batch.empty()) return;
-  if (options_.clock == ImuStreamClock::Host && !checked_clock_) {
+  const bool device = options_.clock == ImuStreamClock::Device;
+  if (!device && !checked_clock_) {
     checked_clock_ = true;
     const ParsedLine& first = batch.front();
-    const double skew_s = to_seconds(read_ns - first.time);
+    const double skew_s = to_seconds(read_ns) - to_seconds(first.time);  // (in double: any int64 time is allowed)
     if (!(std::abs(skew_s) <= kMaxHostSkewS)) {
       throw ConfigError(fmt::format(
           "{}:{}: the first sample's time {} s is {:.3g} s away from this machine's CLOCK_MONOTONIC ({} s) when it "
@@ -196,14 +211,47 @@ void ImuStreamReader::push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns,
           path_, first.line, format_seconds(first.time), skew_s, format_seconds(read_ns)));
     }
   }
-  if (options_.clock == ImuStreamClock::Device) {
+  // Each line's time against the stream so far (in double: a corrupt time near the int64 range must not overflow):
+  // order, and plausibility — a host time within kMaxHostSkewS of the clock when read, a device time advanced by at
+  // most the time that passed since the previous sample was read, plus kMaxHostSkewS. A line that fails is bad input
+  // and leaves the stream's state alone (a single corrupt time would otherwise make every later line "backwards").
+  TimeNs latest = 0;
+  bool any = false;
+  for (ParsedLine& p : batch) {
+    const std::string at = fmt::format("{}:{}", path_, p.line);
+    p.accepted = false;
+    if (last_time_ && p.time <= *last_time_) {
+      const bool same = p.time == *last_time_;
+      live.report_problem(same ? &SourceStats::duplicate_timestamps : &SourceStats::backwards_timestamps,
+                          fmt::format("{}: {} time {} ns {} (previous {} ns)", at, device ? "device" : "sample",
+                                      p.time, same ? "repeats" : "goes backwards", *last_time_));
+      continue;
+    }
+    const double t = to_seconds(p.time);
+    const bool plausible = device ? (!last_time_ || t - to_seconds(*last_time_) <=
+                                                        to_seconds(read_ns) - to_seconds(last_read_ns_) + kMaxHostSkewS)
+                                  : std::abs(to_seconds(read_ns) - t) <= kMaxHostSkewS;
+    if (!plausible || (device && p.time < 0)) {
+      live.report_problem(&SourceStats::timestamp_jumps,
+                          fmt::format("{}: {} time {} ns jumps (previous {} ns{}): corrupt, or the clock was reset", at,
+                                      device ? "device" : "sample", p.time, last_time_.value_or(0),
+                                      device ? "" : ", or not on CLOCK_MONOTONIC"));
+      continue;
+    }
+    p.accepted = true;
+    last_time_ = p.time;
+    last_read_ns_ = read_ns;
+    latest = p.time;  // (increasing)
+    any = true;
+  }
+  if (!any) return;
+  if (device) {
     // The lines read at once were sent over time: the latest of them bounds the delay best. The smallest delay of
-    // the last two windows is the offset (an older one is forgotten: the two clocks drift apart).
-    TimeNs latest = std::numeric_limits<TimeNs>::min();
-    for (const ParsedLine& p : batch) latest = std::max(latest, p.time);
-    const TimeNs offset = read_ns - latest;
+    // the current and the previous window is the offset (older ones are forgotten: the two clocks drift apart).
+    const TimeNs offset = read_ns - latest;  // (both >= 0: no overflow)
     if (!window_start_ || read_ns - *window_start_ >= kOffsetWindowNs) {
-      previous_min_ = current_min_;
+      // A new window; after a pause of more than one window the previous minimum is stale too.
+      previous_min_ = window_start_ && read_ns - *window_start_ < 2 * kOffsetWindowNs ? current_min_ : std::nullopt;
       current_min_.reset();
       window_start_ = read_ns;
     }
@@ -211,19 +259,11 @@ void ImuStreamReader::push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns,
     offset_ns_ = previous_min_ ? std::min(*previous_min_, *current_min_) : *current_min_;
   }
   for (ParsedLine& p : batch) {
+    if (!p.accepted) continue;
     ImuSample& s = p.sample;
     const std::string at = fmt::format("{}:{}", path_, p.line);
-    if (options_.clock == ImuStreamClock::Device) {
-      // The device's own order first (a counter that wrapped or restarted is bad input, not a time to mend).
-      if (last_raw_ && p.time <= *last_raw_) {
-        const bool same = p.time == *last_raw_;
-        live.report_problem(same ? &SourceStats::duplicate_timestamps : &SourceStats::backwards_timestamps,
-                            fmt::format("{}: device time {} ns {} (previous {} ns)", at, p.time,
-                                        same ? "repeats" : "goes backwards", *last_raw_));
-        continue;
-      }
-      last_raw_ = p.time;
-      s.t = p.time + offset_ns_;
+    if (device) {
+      s.t = p.time + offset_ns_;  // within [read - (latest - time) - window drift, read]: no overflow
       // A delay estimate that just shrank would move the sample before the previous one: it is placed just after.
       if (have_last_ && s.t <= last_t_) s.t = last_t_ + 1;
     } else {

@@ -18,9 +18,12 @@
 //           stamp before the previous one (it is then placed 1 ns after it).
 // A serial device (a tty) is opened in the middle of its flow: the bytes up to the first newline are dropped. Its
 // end (a hang-up: unplugged) is an IoError; the end of a FIFO, standard input or a file ends the stream.
-// Checks, through the LiveSource the samples go to (its policy: skip and count, or stop with the error): malformed
-// lines (naming PATH:LINE), readings beyond the sensor's range (ImuRange), gaps of more than `max_dropout` missing
-// samples at the calibration's rate (no gap check when the rate is unknown), and LiveSource's own (order, NaN).
+// Checks, through the LiveSource the samples go to (its policy: skip and count, or stop with the error), each naming
+// PATH:LINE: malformed lines; times that repeat or go backwards; implausible times (a host time more than
+// kMaxHostSkewS from the clock when read; a device time, or a negative one, advanced by more than the time that
+// passed plus kMaxHostSkewS: corrupt, or the clock reset), which leave the stream's state alone; readings beyond the
+// sensor's range (ImuRange); gaps of more than `max_dropout` missing samples at the calibration's rate (no gap check
+// when the rate is unknown); and LiveSource's own (NaN).
 #include <atomic>
 #include <cstddef>
 #include <optional>
@@ -62,6 +65,11 @@ class ImuStreamReader {
   bool run(LiveSource& live);
   /// Ends run() at once (thread-safe).
   void interrupt();
+  /// run()'s handling of the bytes of one read() made at `read_ns` (steady clock): lines are split (a partial one
+  /// kept for the next call), parsed, stamped and pushed. finish(): the stream's end (a last line without its
+  /// newline). Public for tests, and for a caller with its own reading loop (not both at once).
+  void feed(const char* data, std::size_t size, TimeNs read_ns, LiveSource& live);
+  void finish(TimeNs read_ns, LiveSource& live);
   const std::string& path() const { return path_; }
   /// Lines read so far (blank and comment lines included). Read it from run()'s thread, or after run() returned.
   long lines() const { return line_; }
@@ -71,6 +79,7 @@ class ImuStreamReader {
     long line = 0;
     TimeNs time = 0;  // as written (host or device clock)
     ImuSample sample;
+    bool accepted = false;  // its time passed the order and plausibility checks
   };
   /// Parses one line (without its newline) into `batch`; reports a malformed one.
   void parse_line(const std::string& line, LiveSource& live, std::vector<ParsedLine>& batch);
@@ -89,11 +98,15 @@ class ImuStreamReader {
   // Device clock: steady clock − device clock, the smallest of the current and the previous window.
   TimeNs offset_ns_ = 0;
   std::optional<TimeNs> window_start_, current_min_, previous_min_;
-  std::optional<TimeNs> last_raw_;  // the previous sample's device time
-  TimeNs last_t_ = 0;               // the previous sample's stamp (gap check, order of Device stamps)
+  std::optional<TimeNs> last_time_;  // the previous accepted line's time as written
+  TimeNs last_read_ns_ = 0;          // when it was read
+  TimeNs last_t_ = 0;                // the previous sample's stamp (gap check, order of Device stamps)
   bool have_last_ = false;
   std::vector<double> fields_;      // parse_line's scratch
-  std::vector<ParsedLine> batch_;   // run()'s lines of one read
+  std::vector<ParsedLine> batch_;   // the lines of one read
+  std::string pending_;             // a line not yet ended by its newline
+  bool skipping_long_line_ = false;
+  bool skipping_first_fragment_ = false;
 };
 
 }  // namespace rtslam::io

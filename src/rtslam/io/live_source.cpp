@@ -128,12 +128,15 @@ std::optional<Measurement> LiveSource::next() {
       const auto deadline = q.arrived + std::chrono::duration_cast<Clock::duration>(
                                             std::chrono::duration<double>(options_.max_image_wait_s));
       const bool covered = !options_.with_imu || (last_imu_t_ && *last_imu_t_ >= q.frame.t);
-      if (!covered && !closed_ && !last_imu_t_ && Clock::now() >= deadline) {
-        // No IMU sample yet after the wait: an inertial filter starts from the IMU, so the frame is of no use
-        // (released, it would be parked until the IMU came, and an IMU stream started late would fill the pipeline).
+      if (!covered && !last_imu_t_ && (closed_ || Clock::now() >= deadline)) {
+        // No IMU sample yet after the wait (or ever: the source closed): an inertial filter starts from the IMU, so
+        // the frame is of no use (released, it would be parked until the IMU came, and an IMU stream started late
+        // would fill the pipeline).
         images_.pop_front();
-        if (stats_.live_dropped_images++ == 0) {
-          logger(options_.log_name)->warn("no IMU sample yet: camera frames are dropped until the IMU's first one");
+        const std::size_t n = ++stats_.live_images_before_imu;
+        if (n == 1 || n % 100 == 0) {
+          logger(options_.log_name)
+              ->warn("no IMU sample yet: {} camera frame(s) dropped waiting for the IMU's first one", n);
         }
         continue;
       }

@@ -99,6 +99,7 @@ void SourceStats::add_problems(const SourceStats& other) {
   for (const auto& c : kCounters) this->*c.field += other.*c.field;
   live_dropped_images += other.live_dropped_images;
   live_dropped_imu_samples += other.live_dropped_imu_samples;
+  live_images_before_imu += other.live_images_before_imu;
   for (const auto& m : other.messages) {
     if (messages.size() < kMaxMessages) messages.push_back(m);
   }
@@ -114,9 +115,10 @@ std::string SourceStats::summary() const {
   }
   if (!problems_text.empty()) s += "; bad input (skipped or noted): " + problems_text;
   if (live_dropped_images + live_dropped_imu_samples > 0) {
-    s += fmt::format("; dropped by the live queue: {} images, {} IMU samples", live_dropped_images,
+    s += fmt::format("; dropped by the live queue (the filter behind): {} images, {} IMU samples", live_dropped_images,
                      live_dropped_imu_samples);
   }
+  if (live_images_before_imu > 0) s += fmt::format("; {} images before the IMU's first sample", live_images_before_imu);
   return s;
 }
 
@@ -127,6 +129,7 @@ nlohmann::json SourceStats::to_json() const {
   for (const auto& c : kCounters) j[c.key] = this->*c.field;
   j["live_dropped_images"] = live_dropped_images;
   j["live_dropped_imu_samples"] = live_dropped_imu_samples;
+  j["live_images_before_imu"] = live_images_before_imu;
   j["messages"] = messages;
   return j;
 }

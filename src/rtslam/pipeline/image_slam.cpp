@@ -514,6 +514,11 @@ struct ImageSlam::Impl final : slam::Observer {
                                     "{:.3f} s never covered): the filter could not start",
                                     name, system.pending(), to_seconds(system.first_pending().value_or(0))));
       }
+      if (consumed == 0 && source.stats().live_images_before_imu > 0) {
+        throw DataError(fmt::format("dataset '{}': no IMU sample came ({} camera frame(s) dropped waiting for the "
+                                    "first one): is the IMU stream written, and on its topic or path?",
+                                    name, source.stats().live_images_before_imu));
+      }
       if (consumed == 0) {
         throw DataError(fmt::format("dataset '{}' has no image of camera {} (in the part of it read: see --start-at, "
                                     "--stop-after)",

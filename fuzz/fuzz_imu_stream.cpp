@@ -1,7 +1,7 @@
 // Fuzz target: the live IMU stream's line reader (io/imu_stream.hpp), which reads whatever a driver, a serial port at
 // the wrong baud rate or a pipe writes. The input is read as the stream (a file: the same code path as a FIFO's
-// writer closing it), with each clock: the host clock (whose first-sample check refuses nearly every input with a
-// ConfigError naming the file) and the device clock (every line past the check), under both policies. What reaches
+// writer closing it), with each clock: the host clock (whose plausibility check refuses nearly every fuzzed time:
+// bad input naming the file) and the device clock, under both policies. What reaches
 // the consumer must be fit for the filter: finite readings within the sensor's range, strictly increasing times;
 // every problem counted under Skip; under Error, a typed error naming the file.
 #include <cstdint>

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -25,6 +26,7 @@
 #include "rtslam/io/imu_stream.hpp"
 #include "rtslam/io/live_rig.hpp"
 #include "rtslam/io/live_source.hpp"
+#include "rtslam/io/realtime.hpp"
 
 namespace rtslam::io {
 namespace {
@@ -245,6 +247,30 @@ TEST(LiveSource, AProducerFailureIsThrownAfterTheQueuedMeasurements) {
   EXPECT_THROW(src.next(), IoError);
 }
 
+// A run stopped (Ctrl-C) while the live source waits for an IMU that never comes: the real-time reader stops, and its
+// statistics are the stream's as far as it was read (the frames dropped waiting), not those copied at its start.
+TEST(LiveSource, AnInterruptedRealtimeReaderReportsTheFramesDroppedWaitingForTheImu) {
+  LiveSource::Options o;
+  o.with_imu = true;
+  o.max_image_wait_s = 0.01;
+  auto owned = std::make_unique<LiveSource>(o);
+  LiveSource& live = *owned;
+  RealtimeSource rt(std::move(owned), 1.0, RealtimeSource::kDefaultMaxQueue, true);
+  std::atomic<bool> stop{false};
+  rt.set_interrupt(&stop);
+  live.push_image(image_at(10));
+  live.push_image(image_at(20));
+  std::thread ctrl_c([&] {
+    for (int k = 0; k < 2000 && live.stats().live_images_before_imu < 2; ++k) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    stop = true;
+  });
+  EXPECT_FALSE(rt.next().has_value());
+  ctrl_c.join();
+  EXPECT_EQ(rt.stats().live_images_before_imu, 2u);
+}
+
 // ------------------------------------------------------------------------------------------------- ImuStreamReader
 
 /// A FIFO in a fresh folder (removed with it).
@@ -314,19 +340,26 @@ TEST(ImuStreamReader, ReadsHostStampedLinesFromAFifoUntilItsWriterClosesIt) {
   EXPECT_EQ(reader.lines(), 6);
 }
 
-TEST(ImuStreamReader, SamplesStampedOnAnotherClockAreAConfigurationError) {
+// A driver stamping on another clock (here 1 ms after some epoch, not CLOCK_MONOTONIC): its first line is bad input
+// whose message says which clock to stamp on.
+TEST(ImuStreamReader, SamplesStampedOnAnotherClockAreBadInputSayingWhichClock) {
   Fifo fifo("clock");
   ImuStreamReader reader(fifo.path.string(), ImuStreamReader::Options{});
-  LiveSource live(LiveSource::Options{});
-  std::thread writer([&] { write_fifo(fifo.path, "1000000,0,0,0,0,0,9.81\n"); });  // 1 ms after some epoch
-  try {
-    reader.run(live);
-    ADD_FAILURE() << "no error";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("away from this machine's CLOCK_MONOTONIC"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("--imu-clock device"), std::string::npos) << e.what();
-  }
+  LiveSource::Options o;
+  o.policy = BadInputPolicy::Error;
+  LiveSource live(o);
+  std::thread writer([&] { write_fifo(fifo.path, "1000000,0,0,0,0,0,9.81\n"); });
+  EXPECT_TRUE(reader.run(live));
   writer.join();
+  try {
+    live.next();
+    ADD_FAILURE() << "no error";
+  } catch (const DataError& e) {
+    const std::string m = e.what();
+    EXPECT_EQ(m.rfind(fifo.path.string() + ":1: sample time 0.001000000 s is", 0), 0u) << m;
+    EXPECT_NE(m.find("from this machine's CLOCK_MONOTONIC"), std::string::npos) << m;
+    EXPECT_NE(m.find("--imu-clock device"), std::string::npos) << m;
+  }
 }
 
 /// Lines `t,0,0,0,0,0,9.81` for the given device times.
@@ -336,14 +369,30 @@ std::string device_lines(const std::vector<TimeNs>& times) {
   return text;
 }
 
-// The device clock, fed with chosen read times (ImuStreamReader::feed: what run() does with each read).
+/// A device-clock reader (on an empty file: the tests feed it bytes with chosen read times, ImuStreamReader::feed,
+/// what run() does with each read) and the live source it feeds.
+struct DeviceFeed {
+  fs::path file;
+  std::optional<ImuStreamReader> reader;
+  LiveSource live{LiveSource::Options{}};
+  explicit DeviceFeed(const std::string& name) : file(fs::temp_directory_path() / ("rtslam_test_live_" + name)) {
+    std::ofstream(file.string()) << "";
+    ImuStreamReader::Options o;
+    o.clock = ImuStreamClock::Device;
+    reader.emplace(file.string(), o);
+  }
+  ~DeviceFeed() { fs::remove(file); }
+  void feed(const std::string& text, TimeNs read_ns) { reader->feed(text.data(), text.size(), read_ns, live); }
+  std::vector<ImuSample> samples() {
+    live.close();
+    return drain_imu(live);
+  }
+};
+
 TEST(ImuStreamReader, DeviceTimesKeepTheirIntervalsInBurstsAndBadTimesLeaveTheStreamAlone) {
-  const fs::path file = fs::temp_directory_path() / "rtslam_test_live_device.csv";
-  { std::ofstream(file.string()) << ""; }
-  ImuStreamReader::Options o;
-  o.clock = ImuStreamClock::Device;
-  ImuStreamReader reader(file.string(), o);
-  LiveSource live(LiveSource::Options{});
+  DeviceFeed d("device.csv");
+  LiveSource& live = d.live;
+  const fs::path& file = d.file;
   constexpr TimeNs T = 7'000'000'000, R = 1'000'000'000'000, ms = 1'000'000;
   const auto times = [&](int from, int to) {
     std::vector<TimeNs> t;
@@ -353,14 +402,13 @@ TEST(ImuStreamReader, DeviceTimesKeepTheirIntervalsInBurstsAndBadTimesLeaveTheSt
   // Samples 5 ms apart sent in bursts of 4 every 20 ms; the first burst read 0 ms after its last sample was
   // sent, the second 0.5 ms after (a slower delivery: the delay estimate keeps the first), the third 1 ms before
   // the first's delay (a faster one: the estimate shrinks by 1 ms).
-  auto feed = [&](const std::string& text, TimeNs read) { reader.feed(text.data(), text.size(), read, live); };
+  const auto feed = [&](const std::string& text, TimeNs read) { d.feed(text, read); };
   feed(device_lines(times(0, 4)), R);
   feed(device_lines(times(4, 8)), R + 20 * ms + ms / 2);
   feed(device_lines(times(8, 12)), R + 39 * ms);
   // A counter that restarted, then a corrupt time far ahead: both bad input, the stream goes on after them.
   feed(device_lines({100, T + 60 * ms + 1'000'000'000'000'000'000LL, T + 60 * ms}), R + 60 * ms);
-  live.close();
-  const std::vector<ImuSample> s = drain_imu(live);
+  const std::vector<ImuSample> s = d.samples();
   ASSERT_EQ(s.size(), 13u);
   for (std::size_t k = 0; k < 8; ++k) EXPECT_EQ(s[k].t, R + (5 * static_cast<TimeNs>(k) - 15) * ms) << k;
   for (std::size_t k = 8; k < 12; ++k) EXPECT_EQ(s[k].t, R + (5 * static_cast<TimeNs>(k) - 16) * ms) << k;
@@ -372,29 +420,33 @@ TEST(ImuStreamReader, DeviceTimesKeepTheirIntervalsInBurstsAndBadTimesLeaveTheSt
             std::string::npos)
       << live.stats().messages[0];
   EXPECT_NE(live.stats().messages[1].find(":14: device time"), std::string::npos) << live.stats().messages[1];
-  fs::remove(file);
+}
+
+// The stream's first time was the corrupt one: the lines after it are "backwards" until kReanchorLines of them agree
+// with one another; they are then the reference, and the stream goes on.
+TEST(ImuStreamReader, ACorruptFirstTimeGivesWayToTheLinesThatAgree) {
+  DeviceFeed d("reanchor.csv");
+  constexpr TimeNs T = 7'000'000'000, R = 1'000'000'000'000, ms = 1'000'000;
+  const std::vector<TimeNs> times = {9'000'000'000'000'000'000LL, T, T + 5 * ms, T + 10 * ms, T + 15 * ms};
+  for (std::size_t k = 0; k < times.size(); ++k) d.feed(device_lines({times[k]}), R + static_cast<TimeNs>(k) * 5 * ms);
+  const std::vector<ImuSample> s = d.samples();
+  ASSERT_EQ(s.size(), 3u);  // the corrupt one (its readings are good; its stamp is its read time), then lines 4 and 5
+  EXPECT_EQ(s[0].t, R);
+  EXPECT_EQ(s[1].t, R + 15 * ms);
+  EXPECT_EQ(s[2].t, R + 20 * ms);
+  EXPECT_EQ(d.live.stats().backwards_timestamps, 2u);
 }
 
 // A device clock 1 % slow against the host's, read every second with a 1 ms delay for 40 s: the delay estimate
 // forgets minima older than two 10 s windows, so the stamps stay within 0.25 s of the read times (the smallest delay
 // ever seen would leave them 0.4 s behind by the end).
 TEST(ImuStreamReader, TheDeviceClockIsFollowedWhenItDrifts) {
-  const fs::path file = fs::temp_directory_path() / "rtslam_test_live_drift.csv";
-  { std::ofstream(file.string()) << ""; }
-  ImuStreamReader::Options o;
-  o.clock = ImuStreamClock::Device;
-  ImuStreamReader reader(file.string(), o);
-  LiveSource live(LiveSource::Options{});
+  DeviceFeed d("drift.csv");
   constexpr TimeNs R = 1'000'000'000'000, s1 = 1'000'000'000;
-  for (TimeNs k = 0; k <= 40; ++k) {
-    const std::string line = device_lines({k * 990'000'000});
-    reader.feed(line.data(), line.size(), R + k * s1 + 1'000'000, live);
-  }
-  live.close();
-  const std::vector<ImuSample> s = drain_imu(live);
+  for (TimeNs k = 0; k <= 40; ++k) d.feed(device_lines({k * 990'000'000}), R + k * s1 + 1'000'000);
+  const std::vector<ImuSample> s = d.samples();
   ASSERT_EQ(s.size(), 41u);
   EXPECT_LT(std::abs(static_cast<double>(s.back().t - (R + 40 * s1))), 0.25e9);
-  fs::remove(file);
 }
 
 TEST(ImuStreamReader, RangeAndGapProblemsAreCountedUnderSkipAndStopTheStreamUnderError) {

@@ -10,6 +10,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <sys/stat.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -65,7 +66,8 @@ ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
     if (fd_ < 0) throw IoError(fmt::format("-: cannot read standard input as the IMU stream ({})", errno_text(errno)));
     ::fcntl(fd_, F_SETFD, FD_CLOEXEC);
   } else {
-    if (std::filesystem::is_directory(path_)) {
+    std::error_code ec;  // (an unreadable path is for open() below to report)
+    if (std::filesystem::is_directory(path_, ec)) {
       throw IoError(fmt::format("{}: a folder, not an IMU stream (a FIFO, a serial device, a file, or - for stdin)",
                                 path_));
     }
@@ -79,6 +81,17 @@ ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
   struct stat st {};
   is_device_ = ::fstat(fd_, &st) == 0 && S_ISCHR(st.st_mode) && ::isatty(fd_) == 1;
   skipping_first_fragment_ = is_device_;  // opened in the middle of its flow: the first bytes are a line's tail
+  if (is_device_) {
+    // Raw bytes (its speed kept: set with stty): no echo back to the device, no CR->NL mapping, no line editing or
+    // end-of-file byte.
+    termios tio{};
+    if (::tcgetattr(fd_, &tio) == 0) {
+      ::cfmakeraw(&tio);
+      tio.c_cc[VMIN] = 1;
+      tio.c_cc[VTIME] = 0;
+      ::tcsetattr(fd_, TCSANOW, &tio);
+    }
+  }
   if (::pipe2(wake_, O_CLOEXEC | O_NONBLOCK) != 0) {
     const int e = errno;
     ::close(fd_);
@@ -143,17 +156,26 @@ void ImuStreamReader::feed(const char* data, std::size_t size, TimeNs read_ns, L
       }
       skipping_long_line_ = false;
       pending_.clear();
-    } else if (!skipping_long_line_ && !skipping_first_fragment_) {
-      pending_.push_back(c);
-      if (pending_.size() > kMaxLineLength) {  // no newline in sight: not a text IMU stream (or a wrong baud rate)
+    } else if (skipping_first_fragment_ || !skipping_long_line_) {
+      // No newline in sight after kMaxLineLength bytes (the first fragment's included): not a text IMU stream, or a
+      // serial port at the wrong baud rate. The line is reported once and skipped to its end.
+      std::size_t length = 0;
+      if (skipping_first_fragment_) {
+        length = ++fragment_bytes_;
+      } else {
+        pending_.push_back(c);
+        length = pending_.size();
+      }
+      if (length > kMaxLineLength) {
+        skipping_first_fragment_ = false;
+        skipping_long_line_ = true;
+        pending_.clear();
         ++line_;
         live.report_problem(&SourceStats::malformed_lines,
                             fmt::format("{}:{}: a line longer than {} characters (binary data, or a serial port at "
                                         "the wrong baud rate?)",
                                         path_, line_, kMaxLineLength),
                             true);
-        skipping_long_line_ = true;
-        pending_.clear();
       }
     }
   }
@@ -197,47 +219,73 @@ void ImuStreamReader::parse_line(const std::string& raw, LiveSource& live, std::
   batch.push_back(p);
 }
 
+bool ImuStreamReader::consistent(TimeNs time, TimeNs read_ns, std::optional<TimeNs> previous,
+                                 TimeNs previous_read_ns) const {
+  const double t = to_seconds(time), now = to_seconds(read_ns);  // (in double: any int64 time is allowed)
+  if (options_.clock == ImuStreamClock::Host) {
+    // On the clock when read: not in its future, not older than a backlog can be.
+    if (t > now + kMaxHostLeadS || t < now - kMaxHostAgeS) return false;
+  } else if (time < 0) {
+    return false;
+  }
+  if (!previous) return true;
+  // Advanced since the previous line by at most the time that passed between their reads, plus kMaxJumpS.
+  return t - to_seconds(*previous) <= now - to_seconds(previous_read_ns) + kMaxJumpS;
+}
+
 void ImuStreamReader::push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns, LiveSource& live) {
   if (batch.empty()) return;
   const bool device = options_.clock == ImuStreamClock::Device;
-  if (!device && !checked_clock_) {
-    checked_clock_ = true;
-    const ParsedLine& first = batch.front();
-    const double skew_s = to_seconds(read_ns) - to_seconds(first.time);  // (in double: any int64 time is allowed)
-    if (!(std::abs(skew_s) <= kMaxHostSkewS)) {
-      throw ConfigError(fmt::format(
-          "{}:{}: the first sample's time {} s is {:.3g} s away from this machine's CLOCK_MONOTONIC ({} s) when it "
-          "was read: stamp the samples with clock_gettime(CLOCK_MONOTONIC) in ns, or give --imu-clock device",
-          path_, first.line, format_seconds(first.time), skew_s, format_seconds(read_ns)));
-    }
-  }
-  // Each line's time against the stream so far (in double: a corrupt time near the int64 range must not overflow):
-  // order, and plausibility — a host time within kMaxHostSkewS of the clock when read, a device time advanced by at
-  // most the time that passed since the previous sample was read, plus kMaxHostSkewS. A line that fails is bad input
-  // and leaves the stream's state alone (a single corrupt time would otherwise make every later line "backwards").
+  // Each line's time against the stream so far: order, and plausibility (consistent()). A line that fails is bad
+  // input and leaves the stream's state alone (one corrupt time would otherwise make every later line "backwards");
+  // kReanchorLines failing lines in a row that agree with one another (the stream's first time was the corrupt one,
+  // or the device's counter restarted) become the stream's new reference.
   TimeNs latest = 0;
   bool any = false;
   for (ParsedLine& p : batch) {
-    const std::string at = fmt::format("{}:{}", path_, p.line);
     p.accepted = false;
-    if (last_time_ && p.time <= *last_time_) {
-      const bool same = p.time == *last_time_;
-      live.report_problem(same ? &SourceStats::duplicate_timestamps : &SourceStats::backwards_timestamps,
-                          fmt::format("{}: {} time {} ns {} (previous {} ns)", at, device ? "device" : "sample",
-                                      p.time, same ? "repeats" : "goes backwards", *last_time_));
-      continue;
+    const bool ordered = !last_time_ || p.time > *last_time_;
+    if (!ordered || !consistent(p.time, read_ns, last_time_, last_read_ns_)) {
+      const bool follows_run =
+          run_length_ > 0 && p.time > run_last_ && consistent(p.time, read_ns, run_last_, run_read_ns_);
+      run_length_ = follows_run ? run_length_ + 1 : (consistent(p.time, read_ns, std::nullopt, 0) ? 1 : 0);
+      run_last_ = p.time;
+      run_read_ns_ = read_ns;
+      if (run_length_ < kReanchorLines) {
+        const std::string at = fmt::format("{}:{}", path_, p.line);
+        const std::string what = device ? "device time" : "sample time";
+        if (!ordered) {
+          const bool same = p.time == *last_time_;
+          live.report_problem(same ? &SourceStats::duplicate_timestamps : &SourceStats::backwards_timestamps,
+                              fmt::format("{}: {} {} ns {} (previous {} ns)", at, what, p.time,
+                                          same ? "repeats" : "goes backwards", *last_time_));
+        } else if (device || !consistent(p.time, read_ns, std::nullopt, 0)) {
+          live.report_problem(
+              &SourceStats::timestamp_jumps,
+              device ? fmt::format("{}: device time {} ns jumps ahead of the previous {} ns (corrupt?)", at, p.time,
+                                   last_time_.value_or(0))
+                     : fmt::format("{}: sample time {} s is {:.3g} s from this machine's CLOCK_MONOTONIC ({} s) when "
+                                   "read: corrupt, or not stamped with clock_gettime(CLOCK_MONOTONIC) in ns (the "
+                                   "IMU's own clock: --imu-clock device)",
+                                   at, format_seconds(p.time), to_seconds(p.time) - to_seconds(read_ns),
+                                   format_seconds(read_ns)));
+        } else {
+          live.report_problem(&SourceStats::timestamp_jumps,
+                              fmt::format("{}: sample time {} s jumps ahead of the previous {} s (corrupt?)", at,
+                                          format_seconds(p.time), format_seconds(last_time_.value_or(0))));
+        }
+        continue;
+      }
+      logger("io")->warn("{}:{}: {} lines in a row agree with one another but not with the stream before them: "
+                         "their times are the stream's reference from here on",
+                         path_, p.line, kReanchorLines);
+      if (device) {  // a new device clock: its delay is measured afresh
+        window_start_.reset();
+        current_min_.reset();
+        previous_min_.reset();
+      }
     }
-    const double t = to_seconds(p.time);
-    const bool plausible = device ? (!last_time_ || t - to_seconds(*last_time_) <=
-                                                        to_seconds(read_ns) - to_seconds(last_read_ns_) + kMaxHostSkewS)
-                                  : std::abs(to_seconds(read_ns) - t) <= kMaxHostSkewS;
-    if (!plausible || (device && p.time < 0)) {
-      live.report_problem(&SourceStats::timestamp_jumps,
-                          fmt::format("{}: {} time {} ns jumps (previous {} ns{}): corrupt, or the clock was reset", at,
-                                      device ? "device" : "sample", p.time, last_time_.value_or(0),
-                                      device ? "" : ", or not on CLOCK_MONOTONIC"));
-      continue;
-    }
+    run_length_ = 0;
     p.accepted = true;
     last_time_ = p.time;
     last_read_ns_ = read_ns;

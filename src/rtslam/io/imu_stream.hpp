@@ -7,23 +7,26 @@
 //
 // Clock (ImuStreamClock): the camera's frames are stamped on the steady clock (CLOCK_MONOTONIC, camera_source.hpp).
 //   Host:   t is the sample's time on that clock, in ns (a driver on the same machine stamping with
-//           clock_gettime(CLOCK_MONOTONIC)). The first sample must lie within kMaxHostSkewS of the clock when it is
-//           read, else ConfigError: the producer stamps on another clock, and every time would be wrong.
-//   Device: t is the IMU's own clock in ns (any origin: a microcontroller's counter), mapped onto the steady clock by
-//           the smallest delay between a sample's device time and the time it was read, over the last two windows of
-//           kOffsetWindowNs (the transport's latency at its fastest; older minima are forgotten, so the two clocks
-//           may drift apart). Lines read at once share a read time, and the latest of them bounds the delay: serial
-//           and USB links deliver in bursts, whose samples keep their device intervals. A device time that does not
-//           increase is bad input (a counter that wrapped or restarted); a delay estimate that shrinks never moves a
-//           stamp before the previous one (it is then placed 1 ns after it).
-// A serial device (a tty) is opened in the middle of its flow: the bytes up to the first newline are dropped. Its
-// end (a hang-up: unplugged) is an IoError; the end of a FIFO, standard input or a file ends the stream.
+//           clock_gettime(CLOCK_MONOTONIC)): within kMaxHostLeadS after and kMaxHostAgeS before the clock when it is
+//           read (a backlog queued in a pipe is old, a sample is never from the future; a driver stamping on another
+//           clock fails on every line, each message says so).
+//   Device: t is the IMU's own clock in ns (any origin ≥ 0: a microcontroller's counter), mapped onto the steady
+//           clock by the smallest delay between a sample's device time and the time it was read, over the last two
+//           windows of kOffsetWindowNs (the transport's latency at its fastest; older minima are forgotten, so the
+//           two clocks may drift apart). Lines read at once share a read time, and the latest of them bounds the
+//           delay: serial and USB links deliver in bursts, whose samples keep their device intervals. A delay
+//           estimate that shrinks never moves a stamp before the previous one (it is then placed 1 ns after it).
+// Every line's time must also follow the previous line's: later, and ahead of it by at most the time that passed
+// between their reads plus kMaxJumpS. A line that fails is bad input (a corrupt time) and leaves the stream's state
+// alone; kReanchorLines failing lines in a row that agree with one another (the stream's first time was the corrupt
+// one, or the device's counter restarted) become its reference from there on (logged).
+// A serial device (a tty) is put in raw mode (its speed kept) and is opened in the middle of its flow: the bytes up to
+// the first newline are dropped. Its end (a hang-up: unplugged) is an IoError; the end of a FIFO, standard input or
+// a file ends the stream (a file is read to its end at once, not followed as it grows).
 // Checks, through the LiveSource the samples go to (its policy: skip and count, or stop with the error), each naming
-// PATH:LINE: malformed lines; times that repeat or go backwards; implausible times (a host time more than
-// kMaxHostSkewS from the clock when read; a device time, or a negative one, advanced by more than the time that
-// passed plus kMaxHostSkewS: corrupt, or the clock reset), which leave the stream's state alone; readings beyond the
-// sensor's range (ImuRange); gaps of more than `max_dropout` missing samples at the calibration's rate (no gap check
-// when the rate is unknown); and LiveSource's own (NaN).
+// PATH:LINE: malformed lines; times that repeat, go backwards or are implausible (above; timestamp_jumps); readings
+// beyond the sensor's range (ImuRange; non-finite ones too: imu_saturated); gaps of more than `max_dropout` missing
+// samples at the calibration's rate (no gap check when the rate is unknown).
 #include <atomic>
 #include <cstddef>
 #include <optional>
@@ -43,7 +46,8 @@ ImuStreamClock imu_stream_clock_from_string(const std::string& s, const std::str
 
 class ImuStreamReader {
  public:
-  static constexpr double kMaxHostSkewS = 5.0;
+  static constexpr double kMaxHostLeadS = 1.0, kMaxHostAgeS = 60.0, kMaxJumpS = 5.0;
+  static constexpr int kReanchorLines = 3;
   static constexpr std::size_t kMaxLineLength = 4096;
   static constexpr TimeNs kOffsetWindowNs = 10 * kNsPerSecond;
   struct Options {
@@ -61,7 +65,7 @@ class ImuStreamReader {
 
   /// Reads lines until the stream ends or interrupt() is called, pushing each sample into `live` and reporting the
   /// problems there. Returns true at the stream's end (its writer closed it), false when interrupted. A read error
-  /// or a clock mismatch is thrown (IoError / ConfigError naming PATH).
+  /// or a serial device's hang-up is thrown (IoError naming PATH).
   bool run(LiveSource& live);
   /// Ends run() at once (thread-safe).
   void interrupt();
@@ -85,6 +89,9 @@ class ImuStreamReader {
   void parse_line(const std::string& line, LiveSource& live, std::vector<ParsedLine>& batch);
   /// Stamps and checks the lines of one read (read at `read_ns`, the steady clock) and pushes their samples.
   void push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns, LiveSource& live);
+  /// A line's time read at `read_ns` is plausible: on the host clock (Host), not negative (Device), and after
+  /// `previous` (read at `previous_read_ns`) by at most the time between the reads plus kMaxJumpS.
+  bool consistent(TimeNs time, TimeNs read_ns, std::optional<TimeNs> previous, TimeNs previous_read_ns) const;
 
   std::string path_;
   Options options_;
@@ -94,7 +101,10 @@ class ImuStreamReader {
   long line_ = 0;
   bool is_device_ = false;  // a serial device (tty)
   bool seen_data_line_ = false;
-  bool checked_clock_ = false;
+  // Failing lines in a row that agree with one another (re-anchoring): their number, the last one's time and read.
+  int run_length_ = 0;
+  TimeNs run_last_ = 0, run_read_ns_ = 0;
+  std::size_t fragment_bytes_ = 0;  // of a serial device's first fragment, skipped
   // Device clock: steady clock − device clock, the smallest of the current and the previous window.
   TimeNs offset_ns_ = 0;
   std::optional<TimeNs> window_start_, current_min_, previous_min_;

@@ -124,7 +124,13 @@ std::optional<Measurement> RealtimeSource::next() {
       changed_.wait(lock, ready);
     } else {
       while (!changed_.wait_for(lock, std::chrono::milliseconds(50), ready)) {
-        if (interrupt_->load()) return std::nullopt;
+        if (interrupt_->load()) {
+          // Stopped now: the statistics are those of the stream as far as it was read (a live source that dropped
+          // every frame waiting for its IMU says so), not the ones copied at the start.
+          lock.unlock();
+          stop();
+          return std::nullopt;
+        }
       }
     }
     if (queue_.empty()) {

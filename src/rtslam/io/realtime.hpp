@@ -15,7 +15,8 @@
 // Stopping early (an interrupted run): stop() ends the acquisition thread and brings the statistics up to
 // date: the inner source's as far as it was read, and the images released but never taken (images_left). A consumer
 // waiting in next() for a measurement that may be long in coming (a replay's timestamp gap, a live camera delivering
-// nothing usable) returns the end of the stream as soon as the flag given to set_interrupt() is raised.
+// nothing usable) returns the end of the stream as soon as the flag given to set_interrupt() is raised, having
+// stopped (stop(): the statistics are then final).
 //
 // Lag: when the consumer takes an image, how long after its release time it is (the filter's delay behind the
 // clock); a run that keeps up has a lag of about one frame's processing time, one that falls behind drops images
@@ -72,7 +73,8 @@ class RealtimeSource final : public Source {
   /// Ends the acquisition (joins its thread; idempotent): next() returns the end from now on, stats() is complete
   /// for what was read and realtime() counts the images left untaken. The destructor stops as well.
   void stop();
-  /// next() returns the end of the stream while it waits, once *flag is true (checked every 50 ms). Null: never.
+  /// next() stops (stop()) and returns the end of the stream while it waits, once *flag is true (checked every
+  /// 50 ms). Null: never.
   void set_interrupt(const std::atomic<bool>* flag) { interrupt_ = flag; }
 
  private:

@@ -90,7 +90,7 @@ constexpr Counter kCounters[] = {
      "imu_saturated"},
     {&SourceStats::unsupported_images, "image of an unsupported pixel type", "images of an unsupported pixel type",
      "unsupported_images"},
-    {&SourceStats::timestamp_jumps, "image timestamp jump", "image timestamp jumps", "timestamp_jumps"},
+    {&SourceStats::timestamp_jumps, "timestamp jump", "timestamp jumps", "timestamp_jumps"},
 };
 
 }  // namespace

@@ -128,7 +128,9 @@ struct SourceStats {
   std::size_t wrong_size_images = 0;
   std::size_t imu_saturated = 0;  // IMU samples beyond the sensor's range (ImuRange): saturated or corrupt
   std::size_t unsupported_images = 0;  // images of a pixel type that cannot be converted to 8-bit grey faithfully
-  std::size_t timestamp_jumps = 0;  // an image more than kMaxImageJumpS after the previous one of its camera
+  // An image more than kMaxImageJumpS after the previous one of its camera; a live IMU stream's implausible time
+  // (imu_stream.hpp).
+  std::size_t timestamp_jumps = 0;
   // Not bad input: what a live source (live_source.hpp) dropped, good data it had no room or no use for: images and
   // IMU samples the filter fell too far behind to take (its queues full), camera frames that waited while no IMU
   // sample had come at all (an inertial filter cannot start on them).

@@ -214,6 +214,38 @@ TEST(CliLive, ATinySearchBudgetCutsTheSearchAndTheRunStillTracks) {
 }
 
 
+/// A video standing in for a camera at rest: the first image of `cam0_data` (a folder of PNGs) as `frames` frames at
+/// 20 Hz, MJPG (OpenCV's own encoder). Empty when it cannot be written.
+fs::path write_still_video(const fs::path& cam0_data, const fs::path& video, int frames) {
+  std::vector<fs::path> pngs;
+  for (const auto& e : fs::directory_iterator(cam0_data)) pngs.push_back(e.path());
+  std::sort(pngs.begin(), pngs.end());
+  if (pngs.empty()) return {};
+  const cv::Mat grey = cv::imread(pngs.front().string(), cv::IMREAD_GRAYSCALE);
+  if (grey.empty()) return {};
+  cv::Mat bgr;
+  cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+  cv::VideoWriter w(video.string(), cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 20.0,
+                    grey.size(), true);
+  if (!w.isOpened()) return {};
+  for (int k = 0; k < frames; ++k) w.write(bgr);
+  return video;
+}
+
+/// Opens a FIFO for writing once a reader (rtslam) has it open (ENXIO before), for at most 60 s; -1 if none came.
+/// The descriptor blocks on writes.
+int open_fifo_writer(const fs::path& fifo) {
+  for (int k = 0; k < 6000; ++k) {
+    const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+    if (fd >= 0) {
+      ::fcntl(fd, F_SETFL, 0);
+      return fd;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return -1;
+}
+
 // A live camera paired with a live IMU stream (--imu-stream): the simulator's camera and IMU at rest (a constant pose,
 // its synthetic IMU with noise and biases), the video standing in for the camera and the IMU's samples written into a
 // FIFO at 200 Hz, stamped on CLOCK_MONOTONIC as a driver on the machine would. The run ends when the writer closes the
@@ -242,26 +274,12 @@ TEST(CliLive, ACameraAndItsImuStreamThroughAFifoRunInertialSlamAtRest) {
                                                    (d / "static.txt").string(), rest.string()));
   ASSERT_EQ(simulated.code, 0) << simulated.out;
   // The camera: the first rendered frame, 20 frames at 20 Hz (the rig does not move), looped by the stand-in.
-  std::vector<fs::path> pngs;
-  for (const auto& e : fs::directory_iterator(rest / "mav0" / "cam0" / "data")) pngs.push_back(e.path());
-  std::sort(pngs.begin(), pngs.end());
-  ASSERT_FALSE(pngs.empty());
-  const cv::Mat grey = cv::imread(pngs.front().string(), cv::IMREAD_GRAYSCALE);
-  ASSERT_FALSE(grey.empty());
-  const fs::path video = d / "camera.avi";
-  {
-    cv::Mat bgr;
-    cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
-    cv::VideoWriter w(video.string(), cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 20.0,
-                      grey.size(), true);
-    ASSERT_TRUE(w.isOpened());
-    for (int k = 0; k < 20; ++k) w.write(bgr);
-  }
+  const fs::path video = write_still_video(rest / "mav0" / "cam0" / "data", d / "camera.avi", 20);
+  ASSERT_FALSE(video.empty());
   // The calibration: camera and IMU in one rig file.
   const fs::path rig = d / "rig.yaml";
-  rtslam::io::write_rig_yaml(rig.string(),
-                     rtslam::io::load_euroc_folder_calibration((rest / "mav0").string(), {0},
-                                                               rtslam::io::FolderImu::Required));
+  rtslam::io::write_rig_yaml(rig.string(), rtslam::io::load_euroc_folder_calibration((rest / "mav0").string(), {0},
+                                                                                     rtslam::io::FolderImu::Required));
   // The IMU's readings, replayed at 200 Hz into the FIFO for 3 s.
   std::vector<std::string> readings;
   {
@@ -276,22 +294,16 @@ TEST(CliLive, ACameraAndItsImuStreamThroughAFifoRunInertialSlamAtRest) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   std::atomic<int> written{0};
   std::thread writer([&] {
-    // Opened once rtslam has the FIFO open for reading (ENXIO before): at most 60 s.
-    int fd = -1;
-    for (int k = 0; k < 6000 && fd < 0; ++k) {
-      fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
-      if (fd < 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
+    const int fd = open_fifo_writer(fifo);
     if (fd < 0) return;
-    ::fcntl(fd, F_SETFL, 0);  // blocking writes from here on
     // Each sample stamped with its due time (a driver stamps the sampling, not the writing: a stalled writer
     // thread on a loaded machine must not look like an IMU gap).
     const auto start = std::chrono::steady_clock::now();
-    const auto start_ns =
-        std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
+    const auto start_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
     for (int k = 0; k < 600; ++k) {
       std::this_thread::sleep_until(start + std::chrono::microseconds(5000 * k));
-      const std::string line = fmt::format("{}{}\n", start_ns + 5'000'000LL * k, readings[static_cast<std::size_t>(k)]);
+      const std::string line =
+          fmt::format("{}{}\n", start_ns + 5'000'000LL * k, readings[static_cast<std::size_t>(k)]);
       if (::write(fd, line.data(), line.size()) != static_cast<ssize_t>(line.size())) break;
       ++written;
     }
@@ -339,20 +351,8 @@ TEST(CliLive, AnImuStreamThatNeverDeliversEndsWithAnErrorSayingSo) {
   const fs::path d = fs::temp_directory_path() / "rtslam_test_cli_live_no_imu";
   fs::remove_all(d);
   fs::create_directories(d);
-  std::vector<fs::path> pngs;
-  for (const auto& e : fs::directory_iterator(sim / "mav0" / "cam0" / "data")) pngs.push_back(e.path());
-  std::sort(pngs.begin(), pngs.end());
-  ASSERT_FALSE(pngs.empty());
-  const cv::Mat grey = cv::imread(pngs.front().string(), cv::IMREAD_GRAYSCALE);
-  const fs::path video = d / "camera.avi";
-  {
-    cv::Mat bgr;
-    cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
-    cv::VideoWriter w(video.string(), cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 20.0,
-                      grey.size(), true);
-    ASSERT_TRUE(w.isOpened());
-    for (int k = 0; k < 10; ++k) w.write(bgr);
-  }
+  const fs::path video = write_still_video(sim / "mav0" / "cam0" / "data", d / "camera.avi", 10);
+  ASSERT_FALSE(video.empty());
   const fs::path rig = d / "rig.yaml";
   rtslam::io::write_rig_yaml(rig.string(), rtslam::io::load_euroc_folder_calibration(
                                                (sim / "mav0").string(), {0}, rtslam::io::FolderImu::Skip));
@@ -364,11 +364,7 @@ TEST(CliLive, AnImuStreamThatNeverDeliversEndsWithAnErrorSayingSo) {
   const fs::path fifo = d / "imu.fifo";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   std::thread writer([&] {
-    int fd = -1;
-    for (int k = 0; k < 6000 && fd < 0; ++k) {
-      fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
-      if (fd < 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
+    const int fd = open_fifo_writer(fifo);
     if (fd < 0) return;
     std::this_thread::sleep_for(std::chrono::milliseconds(2000));  // frames wait 0.5 s each, then are dropped
     ::close(fd);

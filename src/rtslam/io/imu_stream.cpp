@@ -60,7 +60,6 @@ ImuStreamClock imu_stream_clock_from_string(const std::string& s, const std::str
 ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
     : path_(std::move(path)), options_(options) {
   if (path_.empty()) throw ConfigError("IMU stream: empty path (a FIFO, a serial device, a file, or - for stdin)");
-  skipping_first_fragment_ = false;
   if (path_ == "-") {
     fd_ = ::dup(STDIN_FILENO);
     if (fd_ < 0) throw IoError(fmt::format("-: cannot read standard input as the IMU stream ({})", errno_text(errno)));
@@ -86,6 +85,7 @@ ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
     // end-of-file byte.
     termios tio{};
     if (::tcgetattr(fd_, &tio) == 0) {
+      saved_termios_ = std::make_unique<termios>(tio);  // restored by the destructor (a terminal on stdin: the user's)
       ::cfmakeraw(&tio);
       tio.c_cc[VMIN] = 1;
       tio.c_cc[VTIME] = 0;
@@ -100,6 +100,7 @@ ImuStreamReader::ImuStreamReader(std::string path, const Options& options)
 }
 
 ImuStreamReader::~ImuStreamReader() {
+  if (saved_termios_ && fd_ >= 0) ::tcsetattr(fd_, TCSANOW, saved_termios_.get());
   if (fd_ >= 0) ::close(fd_);
   for (int fd : wake_)
     if (fd >= 0) ::close(fd);

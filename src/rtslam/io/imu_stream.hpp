@@ -29,11 +29,14 @@
 // samples at the calibration's rate (no gap check when the rate is unknown).
 #include <atomic>
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "rtslam/io/source.hpp"
+
+struct termios;
 
 namespace rtslam::io {
 
@@ -100,6 +103,7 @@ class ImuStreamReader {
   std::atomic<bool> interrupted_{false};
   long line_ = 0;
   bool is_device_ = false;  // a serial device (tty)
+  std::unique_ptr<termios> saved_termios_;  // its settings before raw mode, restored at the end
   bool seen_data_line_ = false;
   // Failing lines in a row that agree with one another (re-anchoring): their number, the last one's time and read.
   int run_length_ = 0;

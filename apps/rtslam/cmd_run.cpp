@@ -982,9 +982,6 @@ void register_run(CLI::App& app) {
     if (opts->dataset.rfind("camera:", 0) == 0 && opts->realtime && *opts->realtime != 1.0) {
       throw ConfigError(fmt::format("--realtime {}: a live camera runs at its own clock (speed 1)", *opts->realtime));
     }
-    if (opts->dataset.rfind("camera:", 0) != 0 && !opts->input.imu_stream.empty()) {
-      throw ConfigError("--imu-stream pairs a live IMU with a camera:N input only (a dataset brings its own IMU data)");
-    }
     if (sub->count("--imu-clock") > 0 && opts->input.imu_stream.empty()) {
       throw ConfigError("--imu-clock applies to --imu-stream only");
     }

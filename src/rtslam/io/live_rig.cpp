@@ -34,25 +34,21 @@ LiveRigSource::LiveRigSource(std::unique_ptr<Source> camera, std::unique_ptr<Imu
     }
   });
   const auto read_camera = [this] {
+    const auto keep_stats = [this] {
+      std::lock_guard lock(mutex_);
+      camera_stats_ = camera_->stats();
+    };
     try {
       // A device's next() is not interrupted (it returns its next frame, at most a period later): the flag ends the
       // loop.
       while (!stop_) {
         auto m = camera_->next();
+        keep_stats();
         if (!m) break;
-        {
-          std::lock_guard lock(mutex_);
-          camera_stats_ = camera_->stats();
-        }
         if (auto* img = std::get_if<ImageFrame>(&*m); img != nullptr) live_.push_image(std::move(*img));
       }
-      std::lock_guard lock(mutex_);
-      camera_stats_ = camera_->stats();
     } catch (...) {
-      {
-        std::lock_guard lock(mutex_);
-        camera_stats_ = camera_->stats();
-      }
+      keep_stats();
       live_.fail(std::current_exception());
       return;
     }

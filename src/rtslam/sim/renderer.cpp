@@ -166,8 +166,66 @@ __attribute__((target("avx2"))) int Renderer::rotate_rays_avx2(const float* xy, 
   }
   return done;
 }
+
+// out[u] = the mean of pixel u's n2 (1 or 4) consecutive grey levels, for u < pixels: the plain path's sum
+// 0 + g0 + g1 + ... in the same order, then times inv_n2.
+__attribute__((target("avx2"))) void Renderer::average_subsamples_avx2(const float* grey, int pixels, int n2,
+                                                                        float inv_n2, float* out) {
+  const __m256 zero = _mm256_setzero_ps(), scale = _mm256_set1_ps(inv_n2);
+  int u = 0;
+  if (n2 == 4) {
+    // Eight pixels' 32 sub-samples, transposed within the 128-bit lanes: g[i] holds sub-sample i of pixels
+    // 0 2 4 6 | 1 3 5 7, put back in order by the final permutation.
+    const __m256i order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
+    for (; u + 8 <= pixels; u += 8, grey += 32) {
+      const __m256 a = _mm256_loadu_ps(grey), b = _mm256_loadu_ps(grey + 8);
+      const __m256 c = _mm256_loadu_ps(grey + 16), d = _mm256_loadu_ps(grey + 24);
+      const __m256 t0 = _mm256_unpacklo_ps(a, b), t1 = _mm256_unpackhi_ps(a, b);
+      const __m256 t2 = _mm256_unpacklo_ps(c, d), t3 = _mm256_unpackhi_ps(c, d);
+      const __m256 g0 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
+      const __m256 g1 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+      const __m256 g2 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
+      const __m256 g3 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+      const __m256 sum = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(_mm256_add_ps(zero, g0), g1), g2), g3);
+      _mm256_storeu_ps(out + u, _mm256_permutevar8x32_ps(_mm256_mul_ps(sum, scale), order));
+    }
+  } else {
+    for (; u + 8 <= pixels; u += 8, grey += 8)
+      _mm256_storeu_ps(out + u, _mm256_mul_ps(_mm256_add_ps(zero, _mm256_loadu_ps(grey)), scale));
+  }
+  for (; u < pixels; ++u) {
+    float sum = 0.0f;
+    for (int k = 0; k < n2; ++k) sum += *grey++;
+    out[u] = sum * inv_n2;
+  }
+}
+
+// row[u] = value[u] clamped to [0, 255] and rounded half away from zero, as the plain path: std::clamp's
+// comparisons (v < 0, 255 < v) as blends, the truncation and the fraction test in vector.
+__attribute__((target("avx2"))) void Renderer::quantize_row_avx2(const float* value, int width, std::uint8_t* row) {
+  const __m256 lo = _mm256_setzero_ps(), hi = _mm256_set1_ps(255.0f), half = _mm256_set1_ps(0.5f);
+  const __m256i one = _mm256_set1_epi32(1);
+  int u = 0;
+  for (; u + 8 <= width; u += 8) {
+    __m256 v = _mm256_loadu_ps(value + u);
+    v = _mm256_blendv_ps(v, lo, _mm256_cmp_ps(v, lo, _CMP_LT_OQ));
+    v = _mm256_blendv_ps(v, hi, _mm256_cmp_ps(hi, v, _CMP_LT_OQ));
+    const __m256i whole = _mm256_cvttps_epi32(v);
+    const __m256 up = _mm256_cmp_ps(_mm256_sub_ps(v, _mm256_cvtepi32_ps(whole)), half, _CMP_GE_OQ);
+    const __m256i q = _mm256_add_epi32(whole, _mm256_and_si256(_mm256_castps_si256(up), one));
+    const __m128i q16 = _mm_packus_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
+    _mm_storel_epi64(reinterpret_cast<__m128i*>(row + u), _mm_packus_epi16(q16, q16));
+  }
+  for (; u < width; ++u) {
+    const float v = std::clamp(value[u], 0.0f, 255.0f);
+    const int whole = static_cast<int>(v);
+    row[u] = static_cast<std::uint8_t>(whole + (v - static_cast<float>(whole) >= 0.5f ? 1 : 0));
+  }
+}
 #else
 int Renderer::rotate_rays_avx2(const float*, int, const Eigen::Matrix3f&, Scratch&, std::size_t) { return 0; }
+void Renderer::average_subsamples_avx2(const float*, int, int, float, float*) {}
+void Renderer::quantize_row_avx2(const float*, int, std::uint8_t*) {}
 #endif
 
 void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, Scratch& scratch,
@@ -226,6 +284,14 @@ void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int ti
                            n};
     world_.trace(rays, boxes, scratch.grey.data());
     const float* grey = scratch.grey.data();
+    if (vectorized && (n2_ == 1 || n2_ == 4) && tile_full_[static_cast<std::size_t>(tile_row * tiles_x_ + tx)] != 0) {
+      // Every ray valid: the grey levels are the pixels' sub-samples in order, summed eight pixels at a time.
+      for (int v = v_begin; v < v_end; ++v, grey += static_cast<std::size_t>((u_end - u_begin) * n2_))
+        average_subsamples_avx2(grey, u_end - u_begin, n2_, inv_n2,
+                                sums.data() + static_cast<std::size_t>(v - v_begin) * static_cast<std::size_t>(width_) +
+                                    static_cast<std::size_t>(u_begin));
+      continue;
+    }
     for (int v = v_begin; v < v_end; ++v) {
       const Eigen::Vector2f* ray = rays_.data() + (static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) +
                                                    static_cast<std::size_t>(u_begin)) * static_cast<std::size_t>(n2_);
@@ -243,7 +309,13 @@ void Renderer::render_block(const Frame& frame, std::uint64_t noise_seed, int ti
     RowNoise noise(noise_seed ^ (0x9E3779B97F4A7C15ULL * static_cast<std::uint64_t>(v + 1)),
                    static_cast<float>(options_.noise_std));
     std::uint8_t* row = out.ptr<std::uint8_t>(v);
-    const float* sum_row = sums.data() + static_cast<std::size_t>(v - v_begin) * static_cast<std::size_t>(width_);
+    float* sum_row = sums.data() + static_cast<std::size_t>(v - v_begin) * static_cast<std::size_t>(width_);
+    if (vectorized) {  // the row's noise drawn first (the same stream), then added, clamped and rounded in vector
+      if (noisy)
+        for (int u = 0; u < width_; ++u) sum_row[u] += noise();
+      quantize_row_avx2(sum_row, width_, row);
+      continue;
+    }
     for (int u = 0; u < width_; ++u) {
       float value = sum_row[u];
       if (noisy) value += noise();

@@ -64,6 +64,8 @@ class Renderer {
   struct Scratch;  // per-thread buffers
   void render_block(const Frame& frame, std::uint64_t noise_seed, int tile_row, Scratch& scratch, cv::Mat& out) const;
   static int rotate_rays_avx2(const float* xy, int count, const Eigen::Matrix3f& R, Scratch& scratch, std::size_t n);
+  static void average_subsamples_avx2(const float* grey, int pixels, int n2, float inv_n2, float* out);
+  static void quantize_row_avx2(const float* value, int width, std::uint8_t* row);
 
   const World& world_;
   RenderOptions options_;

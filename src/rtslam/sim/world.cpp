@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 
@@ -497,22 +498,24 @@ __attribute__((target("avx2"))) std::size_t World::trace_avx2(const Rays& rays, 
       const __m256i y0 = _mm256_min_epi32(_mm256_cvttps_epi32(t), _mm256_set1_epi32(f.y0_max));
       const __m256 fx = _mm256_sub_ps(s, _mm256_cvtepi32_ps(x0));
       const __m256 fy = _mm256_sub_ps(t, _mm256_cvtepi32_ps(y0));
-      alignas(32) int xs[8], ys[8], v00[8], v01[8], v10[8], v11[8];
-      _mm256_store_si256(reinterpret_cast<__m256i*>(xs), x0);
-      _mm256_store_si256(reinterpret_cast<__m256i*>(ys), y0);
+      // The texel offsets y0 width + x0 in vector (a face has far fewer than 2^31 texels), then each lane's two
+      // texel pairs (r0[0], r0[1]) and (r1[0], r1[1]) read as 16-bit words: the low byte is the first texel.
+      alignas(32) int offset[8];
+      _mm256_store_si256(reinterpret_cast<__m256i*>(offset),
+                         _mm256_add_epi32(_mm256_mullo_epi32(y0, _mm256_set1_epi32(static_cast<int>(f.width))), x0));
+      alignas(16) std::uint16_t top_pair[8], bottom_pair[8];
       for (int l = 0; l < 8; ++l) {
-        const std::uint8_t* r0 =
-            f.texels + static_cast<std::size_t>(ys[l]) * f.width + static_cast<std::size_t>(xs[l]);  // as shade_hit
-        const std::uint8_t* r1 = r0 + f.width;
-        v00[l] = r0[0];
-        v01[l] = r0[1];
-        v10[l] = r1[0];
-        v11[l] = r1[1];
+        const std::uint8_t* r0 = f.texels + static_cast<std::size_t>(offset[l]);  // as shade_hit
+        std::memcpy(&top_pair[l], r0, 2);
+        std::memcpy(&bottom_pair[l], r0 + f.width, 2);
       }
-      const __m256 a00 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v00)));
-      const __m256 a01 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v01)));
-      const __m256 a10 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v10)));
-      const __m256 a11 = _mm256_cvtepi32_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(v11)));
+      const __m256i low_byte = _mm256_set1_epi32(0xFF);
+      const __m256i tops = _mm256_cvtepu16_epi32(_mm_load_si128(reinterpret_cast<const __m128i*>(top_pair)));
+      const __m256i bottoms = _mm256_cvtepu16_epi32(_mm_load_si128(reinterpret_cast<const __m128i*>(bottom_pair)));
+      const __m256 a00 = _mm256_cvtepi32_ps(_mm256_and_si256(tops, low_byte));
+      const __m256 a01 = _mm256_cvtepi32_ps(_mm256_srli_epi32(tops, 8));
+      const __m256 a10 = _mm256_cvtepi32_ps(_mm256_and_si256(bottoms, low_byte));
+      const __m256 a11 = _mm256_cvtepi32_ps(_mm256_srli_epi32(bottoms, 8));
       const __m256 top = _mm256_add_ps(a00, _mm256_mul_ps(fx, _mm256_sub_ps(a01, a00)));
       const __m256 bot = _mm256_add_ps(a10, _mm256_mul_ps(fx, _mm256_sub_ps(a11, a10)));
       _mm256_storeu_ps(grey + j, _mm256_add_ps(top, _mm256_mul_ps(fy, _mm256_sub_ps(bot, top))));
@@ -660,6 +663,8 @@ void World::generate_textures() {
     const Face& f = faces_[k];
     const FaceTexture& tex = textures_[static_cast<std::size_t>(f.texture)];
     RTSLAM_CHECK(tex.width >= 2 && tex.height >= 2, "world: face textures must be at least 2 x 2 texels");
+    // trace_avx2 computes texel offsets in 32-bit lanes (the room's texel bound, 4e8, keeps them far below).
+    RTSLAM_CHECK(tex.texels.size() < (std::size_t{1} << 31), "world: a face texture has 2^31 texels or more");
     FaceSampler& s = samplers_[k];
     s.b = (f.axis + 1) % 3;
     s.c = (f.axis + 2) % 3;

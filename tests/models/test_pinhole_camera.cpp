@@ -1,6 +1,7 @@
 #include "rtslam/models/sensors/pinhole_camera.hpp"
 
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -203,6 +204,26 @@ TEST(PinholeCamera, ProjectUnprojectRoundTripIsExact) {
       Vector3d ray;
       ASSERT_TRUE(cam.unproject(px, ray)) << name;
       EXPECT_LT((ray - p / p.z()).norm(), 1e-9) << name << " at " << p.transpose();
+    }
+  }
+}
+
+TEST(PinholeCamera, UnprojectOfAbsurdPixelsEndsWithoutARay) {
+  // Newton (the RadTan, Equidistant and RtslamPoly models) compares squared pixel residuals: pixels so far out that
+  // a square would overflow must end with "no preimage" or an exact ray, never a non-finite or a wrong one.
+  for (const auto& [name, intr] : all_cameras()) {
+    if (intr.model == DistortionModel::None || intr.model == DistortionModel::MonoSlam) continue;  // closed forms
+    const PinholeCamera cam(intr);
+    for (const Vector2d& px : {Vector2d(1e150, -1e150), Vector2d(1e200, 3.0), Vector2d(-1e6, 1e6),
+                               Vector2d(std::numeric_limits<double>::max(), 0.0)}) {
+      Vector3d ray;
+      if (!cam.unproject(px, ray)) continue;
+      ASSERT_TRUE(ray.allFinite()) << name << " at " << px.transpose();
+      Vector2d back;  // (a ray this far off the axis may be refused by project's grazing-angle bound)
+      if (cam.project(ray, back)) {
+        EXPECT_LE((back - px).cwiseAbs().maxCoeff(), 1e-6 * px.cwiseAbs().maxCoeff())
+            << name << " at " << px.transpose() << ": back at " << back.transpose();
+      }
     }
   }
 }

@@ -374,8 +374,9 @@ std::string device_lines(const std::vector<TimeNs>& times) {
 struct DeviceFeed {
   fs::path file;
   std::optional<ImuStreamReader> reader;
-  LiveSource live{LiveSource::Options{}};
-  explicit DeviceFeed(const std::string& name) : file(fs::temp_directory_path() / ("rtslam_test_live_" + name)) {
+  LiveSource live;
+  explicit DeviceFeed(const std::string& name, const LiveSource::Options& live_options = {})
+      : file(fs::temp_directory_path() / ("rtslam_test_live_" + name)), live(live_options) {
     std::ofstream(file.string()) << "";
     ImuStreamReader::Options o;
     o.clock = ImuStreamClock::Device;
@@ -440,6 +441,27 @@ TEST(ImuStreamReader, ACorruptFirstTimeGivesWayToTheLinesThatAgree) {
 // A device clock 1 % slow against the host's, read every second with a 1 ms delay for 40 s: the delay estimate
 // forgets minima older than two 10 s windows, so the stamps stay within 0.25 s of the read times (the smallest delay
 // ever seen would leave them 0.4 s behind by the end).
+// Under the error policy a malformed line ends the stream after the samples before it, those of the same read()
+// included (they were parsed first, and are stamped and queued before the problem is reported).
+TEST(ImuStreamReader, UnderTheErrorPolicyTheGoodLinesReadWithAMalformedOneComeFirst) {
+  for (const bool too_long : {false, true}) {
+    LiveSource::Options lo;
+    lo.policy = BadInputPolicy::Error;
+    DeviceFeed d(too_long ? "error-long.csv" : "error-malformed.csv", lo);
+    constexpr TimeNs T = 7'000'000'000, R = 1'000'000'000'000, ms = 1'000'000;
+    const std::string bad = too_long ? std::string(5000, '7') : std::string("7,0,0,zero,0,0,9.81");
+    d.feed(device_lines({T, T + 5 * ms}) + bad + "\n" + device_lines({T + 10 * ms}), R);
+    ASSERT_EQ(d.live.next().has_value(), true);
+    ASSERT_EQ(d.live.next().has_value(), true);
+    try {
+      d.live.next();
+      ADD_FAILURE() << "no error";
+    } catch (const IoError& e) {  // (a problem of the stream's text, as a corrupt file's)
+      EXPECT_NE(std::string(e.what()).find(d.file.string() + ":3: "), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(ImuStreamReader, TheDeviceClockIsFollowedWhenItDrifts) {
   DeviceFeed d("drift.csv");
   constexpr TimeNs R = 1'000'000'000'000, s1 = 1'000'000'000;

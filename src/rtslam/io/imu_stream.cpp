@@ -147,6 +147,7 @@ bool ImuStreamReader::run(LiveSource& live) {
 
 void ImuStreamReader::feed(const char* data, std::size_t size, TimeNs read_ns, LiveSource& live) {
   batch_.clear();
+  batch_read_ns_ = read_ns;
   for (std::size_t k = 0; k < size; ++k) {
     const char c = data[k];
     if (c == '\n') {
@@ -172,6 +173,7 @@ void ImuStreamReader::feed(const char* data, std::size_t size, TimeNs read_ns, L
         skipping_long_line_ = true;
         pending_.clear();
         ++line_;
+        push_batch(batch_, read_ns, live);  // the lines before it first (under the error policy this one ends it)
         live.report_problem(&SourceStats::malformed_lines,
                             fmt::format("{}:{}: a line longer than {} characters (binary data, or a serial port at "
                                         "the wrong baud rate?)",
@@ -185,6 +187,7 @@ void ImuStreamReader::feed(const char* data, std::size_t size, TimeNs read_ns, L
 
 void ImuStreamReader::finish(TimeNs read_ns, LiveSource& live) {
   batch_.clear();
+  batch_read_ns_ = read_ns;
   if (!pending_.empty() && !skipping_long_line_ && !skipping_first_fragment_) parse_line(pending_, live, batch_);
   pending_.clear();
   push_batch(batch_, read_ns, live);
@@ -205,6 +208,7 @@ void ImuStreamReader::parse_line(const std::string& raw, LiveSource& live, std::
   }
   seen_data_line_ = true;
   if (!numbers || v.size() != 7 || !t_is_int) {
+    push_batch(batch, batch_read_ns_, live);  // the lines before it first (under the error policy this one ends it)
     live.report_problem(&SourceStats::malformed_lines,
                         fmt::format("{}:{}: expected 7 numbers 'timestamp [ns], w_x, w_y, w_z, a_x, a_y, a_z', got "
                                     "'{}'",
@@ -293,7 +297,10 @@ void ImuStreamReader::push_batch(std::vector<ParsedLine>& batch, TimeNs read_ns,
     latest = p.time;  // (increasing)
     any = true;
   }
-  if (!any) return;
+  if (!any) {
+    batch.clear();
+    return;
+  }
   if (device) {
     // The lines read at once were sent over time: the latest of them bounds the delay best. The smallest delay of
     // the current and the previous window is the offset (older ones are forgotten: the two clocks drift apart).

@@ -117,7 +117,8 @@ class ImuStreamReader {
   TimeNs last_t_ = 0;                // the previous sample's stamp (gap check, order of Device stamps)
   bool have_last_ = false;
   std::vector<double> fields_;      // parse_line's scratch
-  std::vector<ParsedLine> batch_;   // the lines of one read
+  std::vector<ParsedLine> batch_;   // the lines of one read (pushed early when a malformed line follows them)
+  TimeNs batch_read_ns_ = 0;        // when that read was made
   std::string pending_;             // a line not yet ended by its newline
   bool skipping_long_line_ = false;
   bool skipping_first_fragment_ = false;

@@ -38,7 +38,13 @@ struct Fixture {
 
 void BM_PredictRobot(benchmark::State& st) {
   Fixture f(static_cast<int>(st.range(0)));
-  const MatrixXd F = MatrixXd::Identity(12, 12);
+  // A constant-velocity robot's transition (tangent p θ v ω): p += v dt, θ through its rotation and ω; the v and ω
+  // rows are unit rows (predict() skips them).
+  MatrixXd F = MatrixXd::Identity(12, 12);
+  rtslam::Rng rng(2);
+  F.block(0, 6, 3, 3) = 0.05 * MatrixXd::Identity(3, 3);
+  for (int i = 3; i < 6; ++i)
+    for (int k : {3, 4, 5, 9, 10, 11}) F(i, k) += 0.05 * rtslam::randn(rng);
   const MatrixXd Q = 1e-6 * MatrixXd::Identity(12, 12);
   for (auto _ : st) {
     f.state.predict(f.robot, F, Q);

@@ -350,6 +350,61 @@ TEST(State, ZeroVarianceGaugeRowsStayZeroAndDoNotBlockUpdates) {
 namespace rtslam::filter {
 namespace {
 
+TEST(State, PredictionWithUnitAndSparseRowsIsTheClosedFormAcrossHoles) {
+  // predict() skips F's unit rows and sums only the non-zero terms of the others: an inertial-like transition (the
+  // last rows the identity's, zeros in the others) on a block between holes (removed blocks) must give the dense
+  // F P Fᵀ + Q, leave the unit rows' cross-covariances bit for bit as they were, and write exact mirrors.
+  Rng rng(33);
+  State s;
+  DenseMirror d = fill_linear_state(s, {3, 4, 9, 2, 5, 3}, rng);
+  s.remove_block(d.ids[1]);
+  s.remove_block(d.ids[4]);
+  const std::vector<size_t> keep = {0, 2, 3, 5};
+  DenseMirror r;
+  int n = 0;
+  for (size_t k : keep) {
+    r.ids.push_back(d.ids[k]);
+    r.sizes.push_back(d.sizes[k]);
+    n += d.sizes[k];
+  }
+  r.x = VectorXd(n);
+  r.P = MatrixXd(n, n);
+  for (size_t a = 0; a < keep.size(); ++a) {
+    r.x.segment(r.offset_of(a), r.sizes[a]) = s.mean(r.ids[a]);
+    for (size_t b = 0; b < keep.size(); ++b)
+      r.P.block(r.offset_of(a), r.offset_of(b), r.sizes[a], r.sizes[b]) = s.cov(r.ids[a], r.ids[b]);
+  }
+  // Exactly symmetric, as the filter keeps it (the random start is symmetric to rounding only).
+  r.P = (0.5 * (r.P + r.P.transpose())).eval();
+  for (size_t a = 0; a < keep.size(); ++a)
+    for (size_t b = 0; b < keep.size(); ++b)
+      s.cov(r.ids[a], r.ids[b]) = r.P.block(r.offset_of(a), r.offset_of(b), r.sizes[a], r.sizes[b]);
+  MatrixXd F = MatrixXd::Identity(9, 9);
+  F.topRows(5) += 0.3 * random_matrix(5, 9, rng);
+  F(1, 4) = 0.0;  // zeros inside transformed rows
+  F(3, 0) = 0.0;
+  F.row(2).setZero();  // a row of zeros (a reset) is transformed too
+  F(6, 6) = 1.0 - 1e-3;  // not a unit row
+  F(0, 0) = 1.0;         // nor is one with a unit diagonal and other terms
+  const MatrixXd Q = random_spd(9, rng, 0.01);
+  const MatrixXd before = s.cov(r.ids[0], r.ids[1]);  // the rows of block 0 against block 2's
+  s.predict(r.ids[1], F, Q);
+  MatrixXd Ff = MatrixXd::Identity(n, n);
+  Ff.block(r.offset_of(1), r.offset_of(1), 9, 9) = F;
+  MatrixXd Qf = MatrixXd::Zero(n, n);
+  Qf.block(r.offset_of(1), r.offset_of(1), 9, 9) = Q;
+  r.P = Ff * r.P * Ff.transpose() + Qf;
+  expect_matches_dense(s, r, 1e-12);
+  for (int i : {5, 7, 8}) {  // unit rows: columns 5, 7, 8 of block 0's cross-covariance untouched
+    EXPECT_EQ(s.cov(r.ids[0], r.ids[1]).col(i), before.col(i)) << "row " << i;
+  }
+  EXPECT_NE(s.cov(r.ids[0], r.ids[1]).col(6), before.col(6));
+  for (size_t a = 0; a < keep.size(); ++a) {
+    const MatrixXd ab = s.cov(r.ids[a], r.ids[1]), ba = s.cov(r.ids[1], r.ids[a]);
+    EXPECT_EQ(ab, ba.transpose()) << "blocks " << a << ",1";
+  }
+}
+
 TEST(State, MatchesClosedFormAcrossSeveralActiveRuns) {
   // Holes in the covariance (removed blocks) split the active rows into runs; the downdate over run pairs must
   // still be the closed-form one.

@@ -87,6 +87,8 @@ State::State(StateOptions options)
   packed_index_.assign(static_cast<size_t>(options.tangent_capacity), -1);
   groups_.reserve(static_cast<size_t>(2 * (options.tangent_capacity / kernels::kPanelRows + 1)));
   nz_cols_.resize(static_cast<size_t>(options.max_block_tangent));
+  predict_rows_.resize(static_cast<size_t>(options.max_block_tangent));
+  predict_row_end_.resize(static_cast<size_t>(options.max_block_tangent));
   pht_row_.resize(static_cast<size_t>(options.max_block_tangent));
   nz_hcol_.resize(static_cast<size_t>(options.tangent_capacity));
   nz_prow_.resize(static_cast<size_t>(options.tangent_capacity));
@@ -305,17 +307,56 @@ void State::predict(BlockId id, const Eigen::Ref<const MatrixXd>& F, const Eigen
   const int off = b.tangent_offset;
   RTSLAM_CHECK(F.rows() == t && F.cols() == t && Q.rows() == t && Q.cols() == t, "predict: F/Q size mismatch");
   apply_pending();
-  // Cross-covariances P_bo ← F P_bo on every active column outside the block.
+  // Cross-covariances P_bo ← F P_bo on every active column outside the block, F taken row by row as its non-zero
+  // terms. A row equal to the unit row e_i leaves row i of P_bo (and its mirror) as it is and is skipped: the
+  // inertial robot's bias and gravity rows, half of its 18, and a constant-velocity robot's velocity rows. Each
+  // element of the others is its row's non-zero terms summed from zero in column order (a term with an exact zero
+  // factor would add nothing but the sign of a zero). P_bo's rows are read as the mirror columns P_ob (P is kept
+  // exactly symmetric), so that each term is a contiguous vector operation over the part's columns.
+  const auto max_terms = static_cast<size_t>(t) * static_cast<size_t>(t);
+  if (predict_cols_.size() < max_terms) {  // the first prediction of a block this large (warm-up)
+    predict_cols_.resize(max_terms);
+    predict_factors_.resize(max_terms);
+  }
+  int n_rows = 0, n_terms = 0;
+  for (int i = 0; i < t; ++i) {
+    bool unit = true;
+    for (int k = 0; k < t; ++k) unit = unit && F(i, k) == (k == i ? 1.0 : 0.0);
+    if (unit) continue;
+    predict_rows_[static_cast<size_t>(n_rows)] = i;
+    for (int k = 0; k < t; ++k) {
+      if (F(i, k) == 0.0) continue;  // (NaN is not zero: it is kept)
+      predict_cols_[static_cast<size_t>(n_terms)] = k;
+      predict_factors_[static_cast<size_t>(n_terms)] = F(i, k);
+      ++n_terms;
+    }
+    predict_row_end_[static_cast<size_t>(n_rows++)] = n_terms;
+  }
+  double* const P = P_.data();
+  const std::int64_t ld = P_.outerStride();
   for (const Run& r : runs_) {
     const int end = r.begin + r.length;
     const int parts[2][2] = {{r.begin, std::min(end, off)}, {std::max(r.begin, off + t), end}};
     for (const auto& part : parts) {
       const int len = part[1] - part[0];
       if (len <= 0) continue;
-      auto T = tmp_.block(0, part[0], t, len);
-      T.noalias() = F * P_.block(off, part[0], t, len);
-      P_.block(off, part[0], t, len) = T;
-      P_.block(part[0], off, len, t) = T.transpose();
+      // The new rows, row a at tmp_'s doubles [a len, (a + 1) len) (n_rows len <= t × capacity), before any is
+      // written: each reads the old values of the others.
+      for (int a = 0, term = 0; a < n_rows; ++a) {
+        Eigen::Map<Eigen::VectorXd> row(tmp_.data() + static_cast<std::int64_t>(a) * len, len);
+        row.setZero();
+        for (const int last = predict_row_end_[static_cast<size_t>(a)]; term < last; ++term) {
+          const std::int64_t k = off + predict_cols_[static_cast<size_t>(term)];
+          const Eigen::Map<const Eigen::VectorXd> column_k(P + k * ld + part[0], len);  // = row k of P_bo
+          row += predict_factors_[static_cast<size_t>(term)] * column_k;
+        }
+      }
+      for (int a = 0; a < n_rows; ++a) {
+        const double* row = tmp_.data() + static_cast<std::int64_t>(a) * len;
+        const std::int64_t i = off + predict_rows_[static_cast<size_t>(a)];
+        std::copy(row, row + len, P + i * ld + part[0]);  // P_ob: column i
+        for (int j = 0; j < len; ++j) P[(part[0] + static_cast<std::int64_t>(j)) * ld + i] = row[j];  // P_bo: row i
+      }
     }
   }
   // P_bb ← F P_bb Fᵀ + Q (symmetric by construction, then mirrored exactly).

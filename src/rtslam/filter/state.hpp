@@ -252,6 +252,10 @@ class State {
   mutable VectorXd diag_save_;  // the diagonal blocks while the pending downdate is applied
   MatrixXd tmp_;           // max block tangent × tangent capacity (prediction)
   MatrixXd tmp_small_;     // max block tangent × max block tangent
+  // predict(): F's rows other than unit rows (their indices, and where each one's terms end) and their non-zero
+  // terms (column, factor), in row then column order.
+  std::vector<int> predict_rows_, predict_row_end_, predict_cols_;
+  std::vector<double> predict_factors_;
   MatrixXd F_oc_;          // max block tangent × max block tangent (constrained transition)
 };
 

@@ -438,12 +438,10 @@ TEST(ImuStreamReader, ACorruptFirstTimeGivesWayToTheLinesThatAgree) {
   EXPECT_EQ(d.live.stats().backwards_timestamps, 2u);
 }
 
-// A device clock 1 % slow against the host's, read every second with a 1 ms delay for 40 s: the delay estimate
-// forgets minima older than two 10 s windows, so the stamps stay within 0.25 s of the read times (the smallest delay
-// ever seen would leave them 0.4 s behind by the end).
 // Under the error policy a malformed line ends the stream after the samples before it, those of the same read()
-// included (they were parsed first, and are stamped and queued before the problem is reported).
-TEST(ImuStreamReader, UnderTheErrorPolicyTheGoodLinesReadWithAMalformedOneComeFirst) {
+// included (they were parsed first, and are stamped and queued before the problem is reported). Under the skip
+// policy it is skipped, and the read's other lines are stamped as if it were not there.
+TEST(ImuStreamReader, AMalformedLineEndsTheStreamAfterTheGoodLinesOfItsReadOrIsSkipped) {
   for (const bool too_long : {false, true}) {
     LiveSource::Options lo;
     lo.policy = BadInputPolicy::Error;
@@ -460,8 +458,20 @@ TEST(ImuStreamReader, UnderTheErrorPolicyTheGoodLinesReadWithAMalformedOneComeFi
       EXPECT_NE(std::string(e.what()).find(d.file.string() + ":3: "), std::string::npos) << e.what();
     }
   }
+  // Under the skip policy the read's good lines are stamped together, the device clock's offset from the latest of
+  // them: 5 ms apart, the last one at the read time.
+  DeviceFeed d("skip-malformed.csv");
+  constexpr TimeNs T = 7'000'000'000, R = 1'000'000'000'000, ms = 1'000'000;
+  d.feed(device_lines({T, T + 5 * ms}) + "7,0,0,zero,0,0,9.81\n" + device_lines({T + 10 * ms, T + 15 * ms}), R);
+  const std::vector<ImuSample> s = d.samples();
+  ASSERT_EQ(s.size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) EXPECT_EQ(s[k].t, R - 15 * ms + 5 * ms * static_cast<TimeNs>(k)) << k;
+  EXPECT_EQ(d.live.stats().malformed_lines, 1u);
 }
 
+// A device clock 1 % slow against the host's, read every second with a 1 ms delay for 40 s: the delay estimate
+// forgets minima older than two 10 s windows, so the stamps stay within 0.25 s of the read times (the smallest delay
+// ever seen would leave them 0.4 s behind by the end).
 TEST(ImuStreamReader, TheDeviceClockIsFollowedWhenItDrifts) {
   DeviceFeed d("drift.csv");
   constexpr TimeNs R = 1'000'000'000'000, s1 = 1'000'000'000;

@@ -173,7 +173,9 @@ void ImuStreamReader::feed(const char* data, std::size_t size, TimeNs read_ns, L
         skipping_long_line_ = true;
         pending_.clear();
         ++line_;
-        push_batch(batch_, read_ns, live);  // the lines before it first (under the error policy this one ends it)
+        // Under the error policy this line ends the stream: the lines before it are pushed first. (Otherwise the
+        // read's lines are stamped together: the device clock's offset comes from the latest of them.)
+        if (live.problems_end_the_stream()) push_batch(batch_, read_ns, live);
         live.report_problem(&SourceStats::malformed_lines,
                             fmt::format("{}:{}: a line longer than {} characters (binary data, or a serial port at "
                                         "the wrong baud rate?)",
@@ -208,7 +210,7 @@ void ImuStreamReader::parse_line(const std::string& raw, LiveSource& live, std::
   }
   seen_data_line_ = true;
   if (!numbers || v.size() != 7 || !t_is_int) {
-    push_batch(batch, batch_read_ns_, live);  // the lines before it first (under the error policy this one ends it)
+    if (live.problems_end_the_stream()) push_batch(batch, batch_read_ns_, live);  // (as for an over-long line)
     live.report_problem(&SourceStats::malformed_lines,
                         fmt::format("{}:{}: expected 7 numbers 'timestamp [ns], w_x, w_y, w_z, a_x, a_y, a_z', got "
                                     "'{}'",

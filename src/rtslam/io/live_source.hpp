@@ -53,6 +53,8 @@ class LiveSource final : public Source {
   void report_bad_image(const std::string& message);
   /// A producer's problem under `counter` (a malformed line of an IMU stream...), handled by the policy.
   void report_problem(std::size_t SourceStats::*counter, const std::string& message, bool file_problem = false);
+  /// Whether the first reported problem ends the stream (the Error policy).
+  bool problems_end_the_stream() const { return options_.policy == BadInputPolicy::Error; }
   /// A producer failed (its input is broken or gone): the stream ends, next() yields what was queued before and
   /// then rethrows `error`. The first failure wins; later pushes are ignored.
   void fail(std::exception_ptr error);

@@ -330,8 +330,8 @@ bool PinholeCamera::undistort(const Eigen::Vector2d& xy_d, Eigen::Vector2d& xy, 
   // (RadTan's tangential terms make this bound approximate there, so it relies on Newton alone.)
   if (intr_.model != DistortionModel::RadTan && !(xy_d.norm() < rd_max_)) return false;
   // Newton on distort(xy) = xy_d with backtracking; the residual is measured in pixels, compared squared (the
-  // renderer's ray table unprojects ~1.4 million sub-pixels, and std::hypot took ~45 % of that). A residual whose
-  // square overflows (|xy_d| beyond 1e150) is infinite: no step is accepted and there is no preimage.
+  // renderer's ray table unprojects ~1.4 million sub-pixels, and std::hypot took ~45 % of that). A square overflows
+  // only for residuals beyond ~1e154 px: it is then infinite (or NaN), and only a step to a finite one is accepted.
   const auto squared_residual_px = [&](const Eigen::Vector2d& d) {
     const double ex = intr_.fx * (d.x() - xy_d.x()), ey = intr_.fy * (d.y() - xy_d.y());
     return ex * ex + ey * ey;

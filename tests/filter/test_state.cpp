@@ -62,6 +62,25 @@ DenseMirror fill_linear_state(State& s, const std::vector<int>& sizes, Rng& rng)
   return d;
 }
 
+// The dense mirror of the blocks of d that `keep` lists (the others removed from s).
+DenseMirror mirror_of_kept(const State& s, const DenseMirror& d, const std::vector<size_t>& keep) {
+  DenseMirror r;
+  int n = 0;
+  for (size_t k : keep) {
+    r.ids.push_back(d.ids[k]);
+    r.sizes.push_back(d.sizes[k]);
+    n += d.sizes[k];
+  }
+  r.x = VectorXd(n);
+  r.P = MatrixXd(n, n);
+  for (size_t a = 0; a < keep.size(); ++a) {
+    r.x.segment(r.offset_of(a), r.sizes[a]) = s.mean(r.ids[a]);
+    for (size_t b = 0; b < keep.size(); ++b)
+      r.P.block(r.offset_of(a), r.offset_of(b), r.sizes[a], r.sizes[b]) = s.cov(r.ids[a], r.ids[b]);
+  }
+  return r;
+}
+
 void expect_matches_dense(const State& s, const DenseMirror& d, double tol) {
   for (size_t a = 0; a < d.ids.size(); ++a) {
     EXPECT_LT((s.mean(d.ids[a]) - d.x.segment(d.offset_of(a), d.sizes[a])).norm(), tol) << "block " << a;
@@ -360,20 +379,8 @@ TEST(State, PredictionWithUnitAndSparseRowsIsTheClosedFormAcrossHoles) {
   s.remove_block(d.ids[1]);
   s.remove_block(d.ids[4]);
   const std::vector<size_t> keep = {0, 2, 3, 5};
-  DenseMirror r;
-  int n = 0;
-  for (size_t k : keep) {
-    r.ids.push_back(d.ids[k]);
-    r.sizes.push_back(d.sizes[k]);
-    n += d.sizes[k];
-  }
-  r.x = VectorXd(n);
-  r.P = MatrixXd(n, n);
-  for (size_t a = 0; a < keep.size(); ++a) {
-    r.x.segment(r.offset_of(a), r.sizes[a]) = s.mean(r.ids[a]);
-    for (size_t b = 0; b < keep.size(); ++b)
-      r.P.block(r.offset_of(a), r.offset_of(b), r.sizes[a], r.sizes[b]) = s.cov(r.ids[a], r.ids[b]);
-  }
+  DenseMirror r = mirror_of_kept(s, d, keep);
+  const int n = static_cast<int>(r.x.size());
   // Exactly symmetric, as the filter keeps it (the random start is symmetric to rounding only).
   r.P = (0.5 * (r.P + r.P.transpose())).eval();
   for (size_t a = 0; a < keep.size(); ++a)
@@ -416,20 +423,8 @@ TEST(State, MatchesClosedFormAcrossSeveralActiveRuns) {
   ASSERT_EQ(s.active_runs().size(), 3u);
   // Dense mirror of the remaining blocks 0, 2, 3, 5.
   const std::vector<size_t> keep = {0, 2, 3, 5};
-  DenseMirror r;
-  int n = 0;
-  for (size_t k : keep) {
-    r.ids.push_back(d.ids[k]);
-    r.sizes.push_back(d.sizes[k]);
-    n += d.sizes[k];
-  }
-  r.x = VectorXd(n);
-  r.P = MatrixXd(n, n);
-  for (size_t a = 0; a < keep.size(); ++a) {
-    r.x.segment(r.offset_of(a), r.sizes[a]) = s.mean(r.ids[a]);
-    for (size_t b = 0; b < keep.size(); ++b)
-      r.P.block(r.offset_of(a), r.offset_of(b), r.sizes[a], r.sizes[b]) = s.cov(r.ids[a], r.ids[b]);
-  }
+  DenseMirror r = mirror_of_kept(s, d, keep);
+  const int n = static_cast<int>(r.x.size());
   for (int step = 0; step < 3; ++step) {
     const std::vector<BlockId> involved = {r.ids[1], r.ids[3]};
     const MatrixXd Hc = random_matrix(4, 8, rng);

@@ -6,6 +6,7 @@
 #include "commands.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/codecs.hpp"
 
 int main(int argc, char** argv) {
   // FFmpeg's own messages on a corrupt video ("moov atom not found", "overread 8") would come before our one-line
@@ -16,6 +17,17 @@ int main(int argc, char** argv) {
   std::string log_level = "info";
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
   app.parse_complete_callback([&log_level] { rtslam::set_log_level(log_level); });
+  // The version, and where OpenCV's codecs come from (loaded here, as a check; other commands load them only when
+  // they read a video or an image format of OpenCV's, or write images).
+  app.set_version_flag("--version", [] {
+    std::string codecs;
+    try {
+      codecs = rtslam::io::codecs::load_plugin();
+    } catch (const rtslam::Error& e) {
+      codecs = e.what();
+    }
+    return std::string("rtslam " RTSLAM_VERSION "\nOpenCV codecs plugin: ") + codecs;
+  });
 
   rtslam::cli::register_run(app);
   rtslam::cli::register_simulate(app);

@@ -113,6 +113,40 @@ TEST(Cli, KernelLevelFromTheEnvironment) {
       << bad.out;
 }
 
+// OpenCV's imgcodecs and videoio (with GDAL, FFmpeg, GStreamer...) are not linked: the plugin that reaches them is
+// loaded when needed. --version loads it and says from where; a run that needs it and cannot load it stops with one
+// line naming the place tried.
+TEST(Cli, StartsWithoutOpenCVsCodecsAndLoadsThemWhenNeeded) {
+  const Result libs = run_command("ldd " + std::string(RTSLAM_CLI));
+  ASSERT_EQ(libs.code, 0) << libs.out;
+  EXPECT_NE(libs.out.find("libopencv_core"), std::string::npos) << libs.out;
+  EXPECT_EQ(libs.out.find("libopencv_imgcodecs"), std::string::npos) << libs.out;
+  EXPECT_EQ(libs.out.find("libopencv_videoio"), std::string::npos) << libs.out;
+
+  const Result version = run("--version");
+  ASSERT_EQ(version.code, 0) << version.out;
+  EXPECT_EQ(version.out.rfind("rtslam ", 0), 0u) << version.out;
+  const std::string key = "OpenCV codecs plugin: ";
+  const auto at = version.out.find(key);
+  ASSERT_NE(at, std::string::npos) << version.out;
+  std::string plugin = version.out.substr(at + key.size());
+  plugin = plugin.substr(0, plugin.find('\n'));
+  EXPECT_TRUE(fs::is_regular_file(plugin)) << version.out;
+
+  const fs::path a = temp_dir("no_codecs");
+  const std::string missing = (a / "absent" / "librtslam_opencv_codecs.so").string();
+  const Result r = run_env("RTSLAM_CODECS_PLUGIN=" + missing,
+                           "run --duration 1 --seed 1 --quiet --overlay-frame 3 --out " + (a / "run").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  // The error line (after the simulator's one line about its sequence) names the place tried and the variable.
+  const auto error = r.out.find("rtslam: error: ");
+  ASSERT_NE(error, std::string::npos) << r.out;
+  const std::string line = r.out.substr(error, r.out.find('\n', error) - error);
+  EXPECT_EQ(r.out.find('\n', error) + 1, r.out.size()) << "the error is the last line: " << r.out;
+  EXPECT_NE(line.find("tried " + missing + " (no such file)"), std::string::npos) << r.out;
+  EXPECT_NE(line.find("RTSLAM_CODECS_PLUGIN"), std::string::npos) << r.out;
+}
+
 TEST(Cli, EverySubcommandHasHelp) {
   for (const char* sub : {"run", "simulate", "eval", "batch", "report", "bench", "imu-noise", "view"}) {
     const Result r = run(std::string(sub) + " --help");

@@ -26,7 +26,7 @@ step("install" ${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
 foreach(f include/rtslam/pipeline/image_slam.hpp include/rtslam/models/sensors/pinhole_camera.hpp
           lib/librtslam_core.a lib/librtslam_pipeline.a lib/cmake/rtslam/rtslamConfig.cmake
           lib/cmake/rtslam/rtslamConfigVersion.cmake lib/cmake/rtslam/rtslamTargets.cmake bin/rtslam
-          share/rtslam/config/sim_mono.yaml share/doc/rtslam/install.md)
+          share/rtslam/config/sim_mono.yaml share/doc/rtslam/install.md lib/rtslam/librtslam_opencv_codecs.so)
   if(NOT EXISTS ${prefix}/${f})
     message(FATAL_ERROR "the install has no ${f} (prefix ${prefix})")
   endif()
@@ -35,6 +35,13 @@ endforeach()
 step("installed rtslam --help" ${prefix}/bin/rtslam --help)
 if(NOT output MATCHES "run")
   message(FATAL_ERROR "installed rtslam --help does not list the run command:\n${output}")
+endif()
+
+# The installed CLI loads the installed OpenCV codecs plugin (found from its own folder: bin/../lib/rtslam), not the
+# build tree's.
+step("installed rtslam --version" ${prefix}/bin/rtslam --version)
+if(NOT output MATCHES "OpenCV codecs plugin: ${prefix}/lib/rtslam/librtslam_opencv_codecs.so")
+  message(FATAL_ERROR "installed rtslam --version does not name the installed codecs plugin:\n${output}")
 endif()
 
 set(configure_args -S ${SOURCE_DIR}/examples -B ${WORK_DIR}/build -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release

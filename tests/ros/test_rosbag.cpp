@@ -8,12 +8,12 @@
 #include <filesystem>
 #include <limits>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "io/io_test_util.hpp"
 #include "recorded_source.hpp"
 #include "rtslam/core/error.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
@@ -448,7 +448,7 @@ TEST(Rosbag, CompressedImagesAreDecodedWhenTheStreamReachesThem) {
   cv::Mat pixels(4, 4, CV_8UC1);
   cv::randu(pixels, 0, 255);
   std::vector<std::uint8_t> png;
-  ASSERT_TRUE(cv::imencode(".png", pixels, png));
+  ASSERT_TRUE(io::codecs::imencode(".png", pixels, png));
   RawCompressed good;
   good.stamp = kT0;
   good.data = png;

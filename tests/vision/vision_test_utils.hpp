@@ -1,14 +1,15 @@
 #pragma once
-// Helpers shared by the vision tests: dataset paths, image loading (OpenCV, tests only), synthetic textures.
+// Helpers shared by the vision tests: dataset paths, image loading (OpenCV through io/codecs.hpp), synthetic textures.
 #include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*
 #include <opencv2/imgproc.hpp>
 
 #include "rtslam/core/random.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/vision/image.hpp"
 #include "rtslam/vision/simd.hpp"
 
@@ -51,7 +52,7 @@ inline cv::Mat to_mat(ImageView v) {
 /// Loads an 8-bit grey image; an empty Image if the file is missing or unreadable.
 inline Image load_gray(const std::string& path) {
   if (!std::filesystem::exists(path)) return {};
-  const cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  const cv::Mat m = io::codecs::imread(path, cv::IMREAD_GRAYSCALE);
   if (m.empty()) return {};
   return from_mat(m);
 }

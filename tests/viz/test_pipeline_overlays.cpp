@@ -7,8 +7,9 @@
 
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*
 
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/pipeline/image_slam.hpp"
 #include "rtslam/viz/overlay.hpp"
@@ -97,7 +98,8 @@ TEST(PipelineOverlays, OnePngPerProcessedFrameWithTheEllipsesOfAKnownLandmark) {
     if (m.searched && std::abs(3.0 * std::sqrt(es.eigenvalues()[1]) - kept_axis) < 1e-12) known = &m;
   }
   ASSERT_NE(known, nullptr);
-  const cv::Mat png = cv::imread((dir / viz::OverlayWriter::file_name(r.index, r.t)).string(), cv::IMREAD_COLOR);
+  const cv::Mat png =
+      io::codecs::imread((dir / viz::OverlayWriter::file_name(r.index, r.t)).string(), cv::IMREAD_COLOR);
   ASSERT_FALSE(png.empty());
   // Redraw the frame with this landmark alone on black, to know which pixels are its ellipse, then require them in
   // the PNG with the landmark's colour.

@@ -7,7 +7,7 @@
 #include <variant>
 
 #include <fmt/format.h>
-#include <opencv2/videoio.hpp>
+#include <opencv2/videoio.hpp>  // cv::CAP_*
 
 #include "rtslam/core/error.hpp"
 
@@ -72,8 +72,8 @@ CameraSource::CameraSource(const CameraSpec& spec, cv::Size expected_size, doubl
       throw IoError(fmt::format("{}: no such camera device (camera:{}); `v4l2-ctl --list-devices` lists them",
                                 spec_.path, spec_.index));
     }
-    capture_ = std::make_unique<cv::VideoCapture>(spec_.index, cv::CAP_V4L2);
-    if (!capture_->isOpened()) {
+    capture_ = codecs::open_camera(spec_.index, cv::CAP_V4L2);
+    if (!capture_) {
       throw IoError(fmt::format("{}: cannot open the camera through OpenCV's V4L2 backend (busy, no permission, or "
                                 "not a capture device)",
                                 spec_.path));

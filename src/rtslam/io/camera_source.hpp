@@ -85,7 +85,7 @@ class CameraSource final : public Source {
   double given_rate_hz_ = 0.0;  // the stand-in's rate option (0: its file's own times)
   SourceStats stats_;
   BadInputReporter reporter_;
-  std::unique_ptr<cv::VideoCapture> capture_;  // a device
+  std::unique_ptr<codecs::VideoReader> capture_;  // a device
   std::unique_ptr<VideoSource> video_;         // the stand-in's current pass through its file
   mutable SourceStats merged_;                 // stats() of the stand-in: its own and its passes' (video_'s)
   TimeNs pass_start_ns_ = 0;                   // the current pass's first frame: time after start_ns_

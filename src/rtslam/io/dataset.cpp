@@ -6,7 +6,6 @@
 #include <map>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"

@@ -15,7 +15,6 @@
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"

@@ -10,10 +10,10 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
+#include <opencv2/videoio.hpp>  // cv::CAP_*
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
@@ -214,7 +214,7 @@ cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::stri
   const cv::Mat bytes(1, static_cast<int>(size), CV_8UC1, const_cast<unsigned char*>(data));
   cv::Mat img;
   try {
-    img = cv::imdecode(bytes, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+    img = codecs::imdecode(bytes, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
   } catch (const cv::Exception&) {
     // imdecode throws (rather than returning an empty Mat) on some headers, e.g. a size beyond OpenCV's limits.
     return fail(fmt::format("{} header rejected by OpenCV", to_string(header->format)));
@@ -516,11 +516,11 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
     // sequence errors): quiet while opening, our one line says what failed. FFmpeg first, the backend for files
     // (its own messages, "moov atom not found", follow OPENCV_FFMPEG_LOGLEVEL, which the rtslam CLI sets at start).
     const cv::utils::logging::LogLevel level = cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
-    capture_ = std::make_unique<cv::VideoCapture>(path, cv::CAP_FFMPEG);
-    if (!capture_->isOpened()) capture_ = std::make_unique<cv::VideoCapture>(path, cv::CAP_ANY);
+    capture_ = codecs::open_video(path, cv::CAP_FFMPEG);
+    if (!capture_) capture_ = codecs::open_video(path, cv::CAP_ANY);
     cv::utils::logging::setLogLevel(level);
   }
-  if (!capture_->isOpened()) throw IoError(fmt::format("{}: cannot open the video (unknown format or codec)", path));
+  if (!capture_) throw IoError(fmt::format("{}: cannot open the video (unknown format or codec)", path));
   const double fps = capture_->get(cv::CAP_PROP_FPS);
   const double n = capture_->get(cv::CAP_PROP_FRAME_COUNT);
   if (n > 0 && std::isfinite(n)) frame_count_ = static_cast<std::size_t>(n);

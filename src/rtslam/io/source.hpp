@@ -21,10 +21,7 @@
 #include <opencv2/core.hpp>
 
 #include "rtslam/core/time.hpp"
-
-namespace cv {
-class VideoCapture;
-}
+#include "rtslam/io/codecs.hpp"
 
 namespace rtslam::io {
 
@@ -311,7 +308,7 @@ class VideoSource : public Source {
   cv::Size expected_size_;
   SourceStats stats_;
   BadInputReporter reporter_;
-  std::unique_ptr<cv::VideoCapture> capture_;
+  std::unique_ptr<codecs::VideoReader> capture_;
   std::size_t index_ = 0;
   int image_bits_ = 8;
   std::optional<std::size_t> frame_count_;

@@ -10,10 +10,10 @@
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/text.hpp"
 
 namespace rtslam::io {
@@ -362,7 +362,7 @@ void EurocWriter::add_image(int camera, TimeNs t, const cv::Mat& image) {
   }
   const std::string name = fmt::format("{}.png", t);
   const fs::path file = fs::path(mav0_) / fmt::format("cam{}", camera) / "data" / name;
-  if (!cv::imwrite(file.string(), image)) throw IoError(fmt::format("{}: cannot write the image", file.string()));
+  if (!codecs::imwrite(file.string(), image)) throw IoError(fmt::format("{}: cannot write the image", file.string()));
   auto& csv = cam_csv_[static_cast<std::size_t>(camera)];
   csv << t << ',' << name << '\n';
   if (!csv) throw IoError(fmt::format("{}: write failed", cam_csv_path_[static_cast<std::size_t>(camera)]));

@@ -6,12 +6,12 @@
 #include <variant>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
 #include "rtslam/core/ring_buffer.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/pipeline/config_common.hpp"
 #include "rtslam/sim/simulation.hpp"
 #include "rtslam/pipeline/known_landmarks.hpp"
@@ -256,7 +256,7 @@ void write_overlay(const std::string& path, const ImageSlamFrame& frame, double 
   const cv::Mat img = viz::draw_overlay(viz::make_report(frame, *frame.image, frame.stats, frame.grid), oo);
   bool ok = false;
   try {
-    ok = cv::imwrite(path, img);
+    ok = io::codecs::imwrite(path, img);
   } catch (const cv::Exception& e) {
     throw IoError(fmt::format("{}: cannot write the overlay image ({})", path, e.what()));
   }

@@ -8,10 +8,11 @@
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/math/rotation.hpp"
 #include "rtslam/slam/sensor.hpp"
 #include "rtslam/strategies/active_search.hpp"
@@ -109,7 +110,7 @@ KnownLandmarkSet load_known_landmarks(const std::string& folder, const std::stri
   for (size_t i = 0; i < feats.size(); ++i) {
     set.points_W.push_back(json_vector(feats[i]["yi"], fmt::format("{}: features[{}].yi", path, i), 3));
     const std::string patch_path = fmt::format("{}/known_patch{}.pgm", folder, i);
-    const cv::Mat m = cv::imread(patch_path, cv::IMREAD_GRAYSCALE);
+    const cv::Mat m = io::codecs::imread(patch_path, cv::IMREAD_GRAYSCALE);
     if (m.empty()) throw IoError(fmt::format("{}: cannot read the patch image", patch_path));
     if (m.rows != m.cols || m.rows % 2 == 0) {
       throw DataError(fmt::format("{}: patch is {}x{}, must be an odd square", patch_path, m.cols, m.rows));

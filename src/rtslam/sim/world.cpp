@@ -11,13 +11,14 @@
 #endif
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*
 #include <opencv2/imgproc.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
 #include "rtslam/core/random.hpp"
 #include "rtslam/core/yaml.hpp"
+#include "rtslam/io/codecs.hpp"
 
 namespace rtslam::sim {
 
@@ -616,7 +617,7 @@ void World::generate_textures() {
   std::vector<cv::Mat> images;
   if (config_.texture == "images") {
     for (const std::string& path : config_.images) {
-      cv::Mat im = cv::imread(path, cv::IMREAD_GRAYSCALE);
+      cv::Mat im = io::codecs::imread(path, cv::IMREAD_GRAYSCALE);
       if (im.empty()) throw IoError(fmt::format("world: cannot read texture image '{}'", path));
       images.push_back(im);
     }

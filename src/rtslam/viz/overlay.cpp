@@ -6,9 +6,8 @@
 
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMWRITE_*
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
@@ -180,7 +179,7 @@ void OverlayWriter::write(const FrameReport& r) {
   const cv::Mat img = draw_overlay(r, options_);
   bool ok = false;
   try {
-    ok = cv::imwrite(path, img, {cv::IMWRITE_PNG_COMPRESSION, 1});
+    ok = io::codecs::imwrite(path, img, {cv::IMWRITE_PNG_COMPRESSION, 1});
   } catch (const cv::Exception& e) {
     throw IoError(fmt::format("{}: cannot write the overlay image ({})", path, e.what()));
   }
@@ -231,13 +230,13 @@ VideoWriter::~VideoWriter() {
 
 void VideoWriter::open(double fps, cv::Size size) {
   size_ = size;
-  writer_ = std::make_unique<cv::VideoWriter>();
   std::string tried;
   for (const std::string& cc : fourccs_for(path_)) {
-    const int code = cv::VideoWriter::fourcc(cc[0], cc[1], cc[2], cc[3]);
+    const int code = io::codecs::fourcc(cc[0], cc[1], cc[2], cc[3]);
     bool ok = false;
     try {
-      ok = writer_->open(path_, code, fps, size, true);
+      writer_ = io::codecs::open_video_writer(path_, code, fps, size, true);
+      ok = writer_ != nullptr;
     } catch (const cv::Exception&) {
       ok = false;
     }

@@ -26,11 +26,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/viz/report.hpp"
-
-namespace cv {
-class VideoWriter;
-}
 
 namespace rtslam::viz {
 
@@ -116,7 +113,7 @@ class VideoWriter {
   std::string path_;
   double fps_;
   OverlayOptions options_;
-  std::unique_ptr<cv::VideoWriter> writer_;
+  std::unique_ptr<io::codecs::VideoWriter> writer_;
   cv::Size size_;
   cv::Mat pending_;       // first frame, until the rate is known
   TimeNs pending_t_ = 0;

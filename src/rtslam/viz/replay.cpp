@@ -6,10 +6,11 @@
 #include <map>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/text.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
@@ -193,7 +194,7 @@ RunRecording load_run(const std::string& dir, const std::string& overlays_dir) {
     std::sort(rec.overlays.begin(), rec.overlays.end(),
               [](const OverlayFrame& a, const OverlayFrame& b) { return a.index < b.index; });
     if (!rec.overlays.empty()) {
-      const cv::Mat first = cv::imread(rec.overlays.front().path, cv::IMREAD_UNCHANGED);
+      const cv::Mat first = io::codecs::imread(rec.overlays.front().path, cv::IMREAD_UNCHANGED);
       if (!first.empty()) {
         rec.camera.width = first.cols;
         rec.camera.height = first.rows;

@@ -25,13 +25,14 @@
 #include <civetweb.h>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMWRITE_*
 #include <opencv2/imgproc.hpp>
 
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/log.hpp"
 #include "rtslam/eval/align.hpp"
 #include "rtslam/eval/chi2.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/viz/assets.hpp"
 #include "rtslam/viz/history.hpp"
 #include "rtslam/viz/latest_queue.hpp"
@@ -193,6 +194,7 @@ class Viewer::Impl {
  public:
   explicit Impl(ViewerOptions o) : opt_(validated(std::move(o))), queue_(static_cast<std::size_t>(opt_.queue_frames)) {
     alignment_ = eval::parse_alignment(opt_.ground_truth_alignment);
+    io::codecs::load_plugin();  // the page's JPEGs: a missing plugin is an error now, not a warning per frame later
     start_server();
     worker_ = std::thread([this] { run(); });
   }
@@ -697,7 +699,7 @@ class Viewer::Impl {
         const double s = static_cast<double>(opt_.max_image_width) / img.cols;
         cv::resize(img, img, cv::Size(), s, s, cv::INTER_AREA);
       }
-      cv::imencode(".jpg", img, p.jpeg, {cv::IMWRITE_JPEG_QUALITY, opt_.jpeg_quality});
+      io::codecs::imencode(".jpg", img, p.jpeg, {cv::IMWRITE_JPEG_QUALITY, opt_.jpeg_quality});
     }
     json f = {{"type", "frame"},
               {"i", r.index},

@@ -1,0 +1,133 @@
+#include "rtslam/io/codecs.hpp"
+
+#include <dlfcn.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <mutex>
+
+#include <fmt/format.h>
+
+#include "rtslam/core/error.hpp"
+
+// Set by src/rtslam/io/CMakeLists.txt: the plugin's file in this build tree, in the installation prefix, and the
+// path from the installed executables' folder to it.
+#ifndef RTSLAM_CODECS_BUILD_PATH
+#error "RTSLAM_CODECS_BUILD_PATH must be defined (the plugin's path in the build tree)"
+#endif
+#ifndef RTSLAM_CODECS_INSTALL_PATH
+#error "RTSLAM_CODECS_INSTALL_PATH must be defined (the plugin's installed path)"
+#endif
+#ifndef RTSLAM_CODECS_FROM_BINDIR
+#error "RTSLAM_CODECS_FROM_BINDIR must be defined (the plugin's path relative to the installed executables)"
+#endif
+
+namespace rtslam::io::codecs {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Loaded {
+  const PluginApi* api = nullptr;
+  std::string path;
+  std::string error;  // why nothing loaded (then api is null)
+};
+
+// Opens `path` and checks its interface; on failure says why in `why` and returns null (the library is closed).
+const PluginApi* try_load(const std::string& path, std::string& why) {
+  void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (handle == nullptr) {
+    const char* e = dlerror();
+    why = e != nullptr ? e : "dlopen failed";
+    return nullptr;
+  }
+  using Entry = const PluginApi* (*)();
+  auto entry = reinterpret_cast<Entry>(dlsym(handle, "rtslam_opencv_codecs_api"));
+  const PluginApi* api = entry != nullptr ? entry() : nullptr;
+  if (api == nullptr) {
+    why = "not an rtslam codecs plugin (no rtslam_opencv_codecs_api)";
+  } else if (api->interface_version != kPluginInterface) {
+    why = fmt::format("interface version {}, this program needs {}", api->interface_version, kPluginInterface);
+    api = nullptr;
+  }
+  if (api == nullptr) dlclose(handle);
+  return api;  // kept loaded for the life of the process
+}
+
+Loaded load() {
+  Loaded out;
+  std::vector<std::string> candidates;
+  if (const char* env = std::getenv("RTSLAM_CODECS_PLUGIN"); env != nullptr && *env != '\0') {
+    candidates.emplace_back(env);  // only there: an explicit choice is not second-guessed
+  } else {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec) candidates.push_back((exe.parent_path() / RTSLAM_CODECS_FROM_BINDIR).lexically_normal().string());
+    candidates.emplace_back(RTSLAM_CODECS_BUILD_PATH);
+    candidates.emplace_back(RTSLAM_CODECS_INSTALL_PATH);
+  }
+  std::string tried;
+  for (const std::string& path : candidates) {
+    std::error_code ec;
+    std::string why;
+    if (!fs::exists(path, ec)) {
+      why = "no such file";
+    } else if ((out.api = try_load(path, why)) != nullptr) {
+      out.path = path;
+      return out;
+    }
+    tried += fmt::format("{}{} ({})", tried.empty() ? "" : "; ", path, why);
+  }
+  out.error = fmt::format(
+      "OpenCV codecs plugin librtslam_opencv_codecs.so (image formats other than 8-bit grey PNG, image and video "
+      "writing, video and camera input) not loaded: tried {}; build or install rtslam with it, or set "
+      "RTSLAM_CODECS_PLUGIN to its path",
+      tried);
+  return out;
+}
+
+const Loaded& loaded() {
+  static const Loaded l = load();  // thread-safe, once
+  return l;
+}
+
+const PluginApi& api() {
+  const Loaded& l = loaded();
+  if (l.api == nullptr) throw IoError(l.error);
+  return *l.api;
+}
+
+}  // namespace
+
+const std::string& load_plugin() {
+  api();
+  return loaded().path;
+}
+
+cv::Mat imread(const std::string& path, int flags) { return api().imread(path, flags); }
+
+bool imwrite(const std::string& path, const cv::Mat& image, const std::vector<int>& params) {
+  return api().imwrite(path, image, params);
+}
+
+bool imencode(const std::string& extension, const cv::Mat& image, std::vector<unsigned char>& out,
+              const std::vector<int>& params) {
+  return api().imencode(extension, image, out, params);
+}
+
+cv::Mat imdecode(const cv::Mat& buffer, int flags) { return api().imdecode(buffer, flags); }
+
+std::unique_ptr<VideoReader> open_video(const std::string& path, int api_preference) {
+  return api().open_video(path, api_preference);
+}
+
+std::unique_ptr<VideoReader> open_camera(int index, int api_preference) {
+  return api().open_camera(index, api_preference);
+}
+
+std::unique_ptr<VideoWriter> open_video_writer(const std::string& path, int fourcc, double fps, cv::Size size,
+                                               bool color) {
+  return api().open_video_writer(path, fourcc, fps, size, color);
+}
+
+}  // namespace rtslam::io::codecs

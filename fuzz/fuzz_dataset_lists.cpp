@@ -20,6 +20,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "fuzz_util.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 
 using namespace rtslam;
@@ -126,6 +127,7 @@ void check_stream(io::Dataset& ds) {
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   fuzz::quiet_logs();
+  rtslam::io::codecs::load_plugin();  // its images' decoders (a missing plugin stops the target here)
   build_datasets();
   return 0;
 }

@@ -5,12 +5,16 @@
 #include <opencv2/core/utils/logger.hpp>
 
 #include "fuzz_util.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/source.hpp"
 
 using namespace rtslam;
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   fuzz::quiet_logs();
+  // OpenCV's decoders (every format but 8-bit grey PNG) are in the codecs plugin: without it the target would fuzz
+  // nothing but the plugin's IoError, so a missing plugin stops it here (IoError, uncaught).
+  rtslam::io::codecs::load_plugin();
   cv::setNumThreads(1);  // one core: no decoder worker threads
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   return 0;

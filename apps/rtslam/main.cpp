@@ -22,11 +22,11 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", [] {
     std::string codecs;
     try {
-      codecs = rtslam::io::codecs::load_plugin();
+      codecs = "OpenCV codecs plugin: " + rtslam::io::codecs::load_plugin();
     } catch (const rtslam::Error& e) {
-      codecs = e.what();
+      codecs = e.what();  // "OpenCV codecs plugin ... not loaded: tried ..."
     }
-    return std::string("rtslam " RTSLAM_VERSION "\nOpenCV codecs plugin: ") + codecs;
+    return std::string("rtslam " RTSLAM_VERSION "\n") + codecs;
   });
 
   rtslam::cli::register_run(app);

@@ -1,25 +1,24 @@
 #include "rtslam/io/codecs.hpp"
 
 #include <dlfcn.h>
+#include <link.h>
 
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
-#include <mutex>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
 #include "rtslam/core/error.hpp"
 
-// Set by src/rtslam/io/CMakeLists.txt: the plugin's file in this build tree, in the installation prefix, and the
-// path from the installed executables' folder to it.
-#ifndef RTSLAM_CODECS_BUILD_PATH
-#error "RTSLAM_CODECS_BUILD_PATH must be defined (the plugin's path in the build tree)"
-#endif
-#ifndef RTSLAM_CODECS_INSTALL_PATH
-#error "RTSLAM_CODECS_INSTALL_PATH must be defined (the plugin's installed path)"
-#endif
-#ifndef RTSLAM_CODECS_FROM_BINDIR
-#error "RTSLAM_CODECS_FROM_BINDIR must be defined (the plugin's path relative to the installed executables)"
+// Set by src/rtslam/io/CMakeLists.txt: the plugin's file in this build tree, in the installation prefix, the path
+// from the installed executables' folder to it, and what identifies the build (the plugin carries the same).
+#if !defined(RTSLAM_CODECS_BUILD_PATH) || !defined(RTSLAM_CODECS_INSTALL_PATH) || \
+    !defined(RTSLAM_CODECS_FROM_BINDIR) || !defined(RTSLAM_CODECS_BUILD_ID)
+#error "codecs.cpp needs RTSLAM_CODECS_BUILD_PATH, _INSTALL_PATH, _FROM_BINDIR and _BUILD_ID (io/CMakeLists.txt)"
 #endif
 
 namespace rtslam::io::codecs {
@@ -33,7 +32,8 @@ struct Loaded {
   std::string error;  // why nothing loaded (then api is null)
 };
 
-// Opens `path` and checks its interface; on failure says why in `why` and returns null (the library is closed).
+// Opens `path` and checks its interface and build; on failure says why in `why` and returns null (the library is
+// closed).
 const PluginApi* try_load(const std::string& path, std::string& why) {
   void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (handle == nullptr) {
@@ -49,29 +49,62 @@ const PluginApi* try_load(const std::string& path, std::string& why) {
   } else if (api->interface_version != kPluginInterface) {
     why = fmt::format("interface version {}, this program needs {}", api->interface_version, kPluginInterface);
     api = nullptr;
+  } else if (api->build == nullptr || std::strcmp(api->build, RTSLAM_CODECS_BUILD_ID) != 0) {
+    why = fmt::format("built as '{}', this program as '{}'", api->build != nullptr ? api->build : "?",
+                      RTSLAM_CODECS_BUILD_ID);
+    api = nullptr;
   }
   if (api == nullptr) dlclose(handle);
   return api;  // kept loaded for the life of the process
 }
 
+// Whether this code was linked into the executable (not into a shared object, e.g. the Python module): its address
+// lies in one of the main program's loaded segments (the first object dl_iterate_phdr reports).
+bool in_main_program() {
+  struct Query {
+    std::uintptr_t address;
+    bool inside = false;
+  } q{reinterpret_cast<std::uintptr_t>(&in_main_program)};
+  dl_iterate_phdr(
+      [](dl_phdr_info* info, std::size_t, void* data) {
+        auto* query = static_cast<Query*>(data);
+        for (int i = 0; i < info->dlpi_phnum; ++i) {
+          const ElfW(Phdr)& ph = info->dlpi_phdr[i];
+          if (ph.p_type != PT_LOAD) continue;
+          const std::uintptr_t begin = info->dlpi_addr + ph.p_vaddr;
+          if (query->address >= begin && query->address < begin + ph.p_memsz) query->inside = true;
+        }
+        return 1;  // the main program only
+      },
+      &q);
+  return q.inside;
+}
+
 Loaded load() {
   Loaded out;
   std::vector<std::string> candidates;
+  const auto add = [&candidates](std::string path) {
+    for (const std::string& c : candidates) {
+      if (c == path) return;
+    }
+    candidates.push_back(std::move(path));
+  };
+  std::error_code ec;
   if (const char* env = std::getenv("RTSLAM_CODECS_PLUGIN"); env != nullptr && *env != '\0') {
-    candidates.emplace_back(env);  // only there: an explicit choice is not second-guessed
+    add(fs::absolute(env, ec).lexically_normal().string());  // only there: an explicit choice is not second-guessed
   } else {
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec) candidates.push_back((exe.parent_path() / RTSLAM_CODECS_FROM_BINDIR).lexically_normal().string());
-    candidates.emplace_back(RTSLAM_CODECS_BUILD_PATH);
-    candidates.emplace_back(RTSLAM_CODECS_INSTALL_PATH);
+    if (in_main_program()) {
+      const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+      if (!ec) add((exe.parent_path() / RTSLAM_CODECS_FROM_BINDIR).lexically_normal().string());
+    }
+    add(RTSLAM_CODECS_BUILD_PATH);
+    add(RTSLAM_CODECS_INSTALL_PATH);
   }
   std::string tried;
   for (const std::string& path : candidates) {
-    std::error_code ec;
     std::string why;
     if (!fs::exists(path, ec)) {
-      why = "no such file";
+      why = ec ? ec.message() : "no such file";
     } else if ((out.api = try_load(path, why)) != nullptr) {
       out.path = path;
       return out;

@@ -2,17 +2,18 @@
 // OpenCV's image codecs and video I/O, loaded when first used (docs/install.md, "The OpenCV codecs plugin").
 //
 // Debian's libopencv-imgcodecs and libopencv-videoio pull in GDAL, GDCM, FFmpeg and GStreamer: 264 shared libraries,
-// all bound at load time, ~150 ms at every start of a program that links them (`rtslam --version` took 180 ms, a
-// test executable as long before its first line). rtslam's own libraries link OpenCV's core and imgproc only; the
+// all bound at load time, ~150 ms at every start of a program that links them (`rtslam eval --help` took 190 ms,
+// a test executable as long before its first line). rtslam's own libraries link OpenCV's core and imgproc only; the
 // few calls into imgcodecs and videoio go through this header to a small plugin (librtslam_opencv_codecs.so, built
-// and installed with rtslam) that is dlopen'ed on the first such call. The datasets' 8-bit grey PNGs are decoded by
-// our own reader (png_grey.hpp) and never load it: a run on EuRoC, TUM or KITTI images loads it only to write images
-// or videos, or for another image format.
+// and installed with rtslam) that is dlopen'ed on the first such call. The datasets' 8-bit grey PNGs (EuRoC, KITTI's
+// grey sequences) are decoded by our own reader (png_grey.hpp) and never load it; colour or 16-bit images (TUM RGB-D),
+// other formats, videos, cameras and writing images or videos do.
 //
 // Where the plugin is looked for, first found wins: the file named by RTSLAM_CODECS_PLUGIN (and only there when set);
-// the installed layout relative to the running executable (PREFIX/bin/rtslam -> PREFIX/lib/rtslam/); the build tree
-// the library was compiled in; the installation prefix it was configured for. A candidate built for another interface
-// version is skipped. When none loads, the first call throws IoError naming the places tried.
+// when this code is part of the executable, the installed layout relative to it (PREFIX/bin/rtslam ->
+// PREFIX/lib/rtslam/); the build tree the library was compiled in; the installation prefix it was configured for. A
+// candidate of another interface version or another build (rtslam version, OpenCV version, compiler) is skipped.
+// When none loads, every call throws IoError naming the places tried and why each failed.
 //
 // The functions take and return what OpenCV's do (same flags, cv::IMREAD_* / cv::IMWRITE_* / cv::CAP_* constants
 // from OpenCV's headers, which are enums and need no linking). cv::Exception from OpenCV passes through unchanged.
@@ -73,6 +74,7 @@ const std::string& load_plugin();
 inline constexpr int kPluginInterface = 1;
 struct PluginApi {
   int interface_version;
+  const char* build;  // RTSLAM_CODECS_BUILD_ID of the plugin's build: rtslam, OpenCV and compiler versions
   cv::Mat (*imread)(const std::string&, int);
   bool (*imwrite)(const std::string&, const cv::Mat&, const std::vector<int>&);
   bool (*imencode)(const std::string&, const cv::Mat&, std::vector<unsigned char>&, const std::vector<int>&);

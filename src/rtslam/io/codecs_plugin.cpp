@@ -41,6 +41,7 @@ std::unique_ptr<VideoReader> reader_or_null(std::unique_ptr<cv::VideoCapture> ca
 
 const PluginApi kApi{
     kPluginInterface,
+    RTSLAM_CODECS_BUILD_ID,
     [](const std::string& path, int flags) { return cv::imread(path, flags); },
     [](const std::string& path, const cv::Mat& image, const std::vector<int>& params) {
       return cv::imwrite(path, image, params);

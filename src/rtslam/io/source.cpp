@@ -515,6 +515,7 @@ VideoSource::VideoSource(const std::string& path, double rate_hz, TimeNs t0, cv:
     // OpenCV logs every backend it tries on a file it cannot open (a dozen lines of GStreamer, FFmpeg and image
     // sequence errors): quiet while opening, our one line says what failed. FFmpeg first, the backend for files
     // (its own messages, "moov atom not found", follow OPENCV_FFMPEG_LOGLEVEL, which the rtslam CLI sets at start).
+    codecs::load_plugin();  // a missing plugin throws here, before the level is changed
     const cv::utils::logging::LogLevel level = cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
     capture_ = codecs::open_video(path, cv::CAP_FFMPEG);
     if (!capture_) capture_ = codecs::open_video(path, cv::CAP_ANY);

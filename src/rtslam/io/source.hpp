@@ -335,12 +335,14 @@ cv::Mat to_grey8(const cv::Mat& image, std::string* why = nullptr, int* bits = n
 /// decoded: ..." or "unsupported: ..."). This is the decode path of every image reader (read_grey_image). 8-bit grey
 /// PNGs take a faster path with the same pixels (png_grey.hpp). `keep_16bit`: a 16-bit image comes back as 16-bit
 /// grey (CV_16UC1), not yet scaled — for decoders running ahead of the stream, whose consumer scales it with to_grey8
-/// in stream order, since the scale depends on the depth of the images before it (`bits`).
+/// in stream order, since the scale depends on the depth of the images before it (`bits`). Images other than 8-bit
+/// grey PNGs are decoded by OpenCV through the codecs plugin (codecs.hpp): IoError when it cannot be loaded (a
+/// setup error, not a bad image).
 cv::Mat decode_grey_image(const unsigned char* data, std::size_t size, std::string* why = nullptr,
                           int* bits = nullptr, bool keep_16bit = false);
 
 /// Reads an image file and decodes it with decode_grey_image; an empty Mat if it is missing or cannot be decoded
-/// (`why` says which).
+/// (`why` says which); IoError as decode_grey_image.
 cv::Mat read_grey_image(const std::string& path, std::string* why = nullptr, int* bits = nullptr,
                         bool keep_16bit = false);
 

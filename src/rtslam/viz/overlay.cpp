@@ -162,6 +162,7 @@ OverlayWriter::OverlayWriter(std::string dir, OverlayOptions options) : dir_(std
   index_.open(index_path_, std::ios::out | std::ios::trunc);
   if (!index_) throw IoError(fmt::format("{}: cannot write", index_path_));
   index_ << "frame,t_ns,file,visible,searched,matched,ransac_inliers,updated,initialized,nis_sum,nis_count\n";
+  io::codecs::load_plugin();  // the PNG encoder: loaded now (~150 ms), not on the filter thread at the first frame
 }
 
 OverlayWriter::~OverlayWriter() {
@@ -214,6 +215,7 @@ VideoWriter::VideoWriter(std::string path, double fps, OverlayOptions options)
   options_.validate();
   if (!(fps_ >= 0.0) || !std::isfinite(fps_)) throw ConfigError(fmt::format("video: fps = {} must be >= 0", fps_));
   (void)fourccs_for(path_);  // an unknown extension fails now, not at the second frame
+  io::codecs::load_plugin();  // and so does a missing codecs plugin (its loading, ~150 ms, is not a frame's time)
   const auto parent = std::filesystem::path(path_).parent_path();
   if (!parent.empty()) {
     std::error_code ec;

@@ -7,10 +7,11 @@
 #include <fstream>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*, cv::IMWRITE_*
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/writers.hpp"
 
@@ -249,7 +250,7 @@ TEST(BadInput, MalformedCsvLine) {
 TEST(BadInput, WrongImageSize) {
   TempDir dir;
   const std::string root = make_dataset(dir);
-  cv::imwrite(image_path(root, 2), cv::Mat(16, 16, CV_8UC1, cv::Scalar(1)));
+  io::codecs::imwrite(image_path(root, 2), cv::Mat(16, 16, CV_8UC1, cv::Scalar(1)));
   expect_error<DataError>(root, {"cam0/data.csv:4:", "is 16x16, the calibration of camera 0 says 32x24"});
   EXPECT_EQ(run(root, BadInputPolicy::Skip).stats.wrong_size_images, 1u);
 }

@@ -9,11 +9,12 @@
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
+#include <opencv2/videoio.hpp>  // cv::CAP_*
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/io/camera_source.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 
 namespace rtslam::io {
@@ -60,10 +61,10 @@ TEST(CameraSpec, ParsesDeviceNumbersDevicePathsAndVideoFiles) {
 /// A short MJPG AVI (OpenCV's own encoder: no codec library needed) of `n` 64x48 colour frames whose brightness is
 /// 20 + 10 i, at `fps`.
 void write_video(const std::string& path, int n, double fps) {
-  cv::VideoWriter w(path, cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, cv::Size(64, 48),
-                    true);
-  ASSERT_TRUE(w.isOpened()) << path;
-  for (int i = 0; i < n; ++i) w.write(cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(20 + 10 * i)));
+  const auto w = io::codecs::open_video_writer(path, cv::CAP_OPENCV_MJPEG, io::codecs::fourcc('M', 'J', 'P', 'G'), fps,
+                                               cv::Size(64, 48), true);
+  ASSERT_TRUE(w) << path;
+  for (int i = 0; i < n; ++i) w->write(cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(20 + 10 * i)));
 }
 
 TEST(CameraSource, AVideoStandsInForADeviceLoopedAndPacedAtItsRate) {

@@ -3,12 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/videoio.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*, cv::IMWRITE_*
+#include <opencv2/videoio.hpp>  // cv::CAP_*
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/core/random.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/rosbag_source.hpp"
 #include "rtslam/io/trajectory_io.hpp"
 #include "rtslam/io/writers.hpp"
@@ -320,7 +321,7 @@ TEST(Dataset, ReadsTumLayout) {
   for (int i = 0; i < 3; ++i) {
     cv::Mat bgr(6, 8, CV_8UC3, cv::Scalar(10 * i, 20 * i, 30 * i));
     fs::create_directories(dir / "rgb");
-    cv::imwrite(dir / ("rgb/" + std::to_string(i) + ".png"), bgr);
+    io::codecs::imwrite(dir / ("rgb/" + std::to_string(i) + ".png"), bgr);
   }
   write_text(dir / "rgb.txt",
              "# color images\n# file: 'rgbd_dataset_freiburg1_xyz.bag'\n# timestamp filename\n"
@@ -357,7 +358,7 @@ TEST(Dataset, ReadsKittiLayout) {
   fs::create_directories(seq + "/image_0");
   // KITTI 04's image size: the calibration is checked against it (principal point inside, a plausible field of view).
   for (int i = 0; i < 4; ++i) {
-    cv::imwrite(fmt::format("{}/image_0/{:06d}.png", seq, i), cv::Mat(376, 1241, CV_8UC1, cv::Scalar(i)));
+    io::codecs::imwrite(fmt::format("{}/image_0/{:06d}.png", seq, i), cv::Mat(376, 1241, CV_8UC1, cv::Scalar(i)));
   }
   write_text(seq + "/times.txt", "0.000000e+00\n1.036070e-01\n2.072140e-01\n3.108210e-01\n");
   write_text(seq + "/calib.txt",
@@ -387,7 +388,7 @@ TEST(Dataset, ReadsKittiLayout) {
   o.cameras = {1};
   fs::create_directories(seq + "/image_1");
   for (int i = 0; i < 4; ++i) {
-    cv::imwrite(fmt::format("{}/image_1/{:06d}.png", seq, i), cv::Mat(376, 1241, CV_8UC1, cv::Scalar(0)));
+    io::codecs::imwrite(fmt::format("{}/image_1/{:06d}.png", seq, i), cv::Mat(376, 1241, CV_8UC1, cv::Scalar(0)));
   }
   Dataset right = open_dataset("kitti:" + seq, o);
   EXPECT_NEAR(right.rig.cameras[0].T_RS.translation().x(), 0.537150, 1e-6);
@@ -396,7 +397,9 @@ TEST(Dataset, ReadsKittiLayout) {
 TEST(Dataset, ImageFolderWithTimestampsUsesNaturalOrder) {
   TempDir dir;
   write_text(dir / "camera.yaml", kSmallRig);
-  for (int i : {1, 2, 10}) cv::imwrite(dir / fmt::format("img{}.png", i), cv::Mat(6, 8, CV_8UC1, cv::Scalar(i)));
+  for (int i : {1, 2, 10}) {
+    io::codecs::imwrite(dir / fmt::format("img{}.png", i), cv::Mat(6, 8, CV_8UC1, cv::Scalar(i)));
+  }
   write_text(dir / "times.txt", "# seconds\n0.5\n0.6\n0.75\n");
   Dataset ds = open_dataset(dir.str());
   EXPECT_EQ(ds.kind, "images");
@@ -436,9 +439,10 @@ TEST(Dataset, ReadsVideoFile) {
   TempDir dir;
   const std::string video = dir / "clip.avi";
   {
-    cv::VideoWriter w(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 15.0, cv::Size(64, 48), true);
-    if (!w.isOpened()) GTEST_SKIP() << "OpenCV cannot write MJPG video here";
-    for (int i = 0; i < 5; ++i) w.write(cv::Mat(48, 64, CV_8UC3, cv::Scalar(40 * i, 40 * i, 40 * i)));
+    const auto w = io::codecs::open_video_writer(video, cv::CAP_ANY, io::codecs::fourcc('M', 'J', 'P', 'G'), 15.0,
+                                                 cv::Size(64, 48), true);
+    if (!w) GTEST_SKIP() << "OpenCV cannot write MJPG video here";
+    for (int i = 0; i < 5; ++i) w->write(cv::Mat(48, 64, CV_8UC3, cv::Scalar(40 * i, 40 * i, 40 * i)));
   }
   write_text(dir / "calibration.yaml",
              "cameras:\n  - name: cam0\n    width: 64\n    height: 48\n    intrinsics: [50, 50, 32, 24]\n");
@@ -456,13 +460,14 @@ TEST(Dataset, ATruncatedVideoIsAnErrorNotAnEarlyEnd) {
   TempDir dir;
   const std::string video = dir / "clip.avi";
   {
-    cv::VideoWriter w(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 15.0, cv::Size(64, 48), true);
-    if (!w.isOpened()) GTEST_SKIP() << "OpenCV cannot write MJPG video here";
+    const auto w = io::codecs::open_video_writer(video, cv::CAP_ANY, io::codecs::fourcc('M', 'J', 'P', 'G'), 15.0,
+                                                 cv::Size(64, 48), true);
+    if (!w) GTEST_SKIP() << "OpenCV cannot write MJPG video here";
     cv::Mat img(48, 64, CV_8UC3);
     cv::RNG rng(3);
     for (int i = 0; i < 30; ++i) {
       rng.fill(img, cv::RNG::UNIFORM, 0, 255);
-      w.write(img);
+      w->write(img);
     }
   }
   write_text(dir / "calibration.yaml",

@@ -11,11 +11,12 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*, cv::IMWRITE_*
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/io/calibration.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/image_header.hpp"
 #include "rtslam/io/source.hpp"
@@ -174,7 +175,7 @@ TEST(FuzzRegressions, SecondsBeyondInt64Nanoseconds) {
   TempDir dir;
   write_text(dir / "calibration.yaml", kRig);
   fs::create_directories(dir / "rgb");
-  cv::imwrite(dir / "rgb/1.png", cv::Mat(6, 8, CV_8UC1, cv::Scalar(1)));
+  io::codecs::imwrite(dir / "rgb/1.png", cv::Mat(6, 8, CV_8UC1, cv::Scalar(1)));
   write_text(dir / "rgb.txt", "9999999999 rgb/1.png\n");
   EXPECT_THROW_WITH(open_dataset("tum:" + dir.str()), IoError, "rgb.txt:1: expected 'timestamp[s] filename'");
 }
@@ -203,8 +204,8 @@ TEST(FuzzRegressions, KittiTimesSpanningMoreThanInt64) {
   TempDir dir;
   const std::string seq = dir / "sequences/00";
   fs::create_directories(seq + "/image_0");
-  cv::imwrite(seq + "/image_0/000000.png", cv::Mat(6, 8, CV_8UC1, cv::Scalar(1)));
-  cv::imwrite(seq + "/image_0/000001.png", cv::Mat(6, 8, CV_8UC1, cv::Scalar(2)));
+  io::codecs::imwrite(seq + "/image_0/000000.png", cv::Mat(6, 8, CV_8UC1, cv::Scalar(1)));
+  io::codecs::imwrite(seq + "/image_0/000001.png", cv::Mat(6, 8, CV_8UC1, cv::Scalar(2)));
   write_text(seq + "/calib.txt", "P0: 10 0 4 0 0 10 3 0 0 0 1 0\n");
   write_text(seq + "/times.txt", "-9000000000.5\n9000000000.5\n");
   // Such a jump is a corrupt timestamp (io::kMaxImageJumpS): an error, or skipped with the span's rate unknown.
@@ -336,7 +337,7 @@ TEST(FuzzRegressions, ImageHeadersOfEveryAcceptedFormat) {
   cv::merge(std::vector<cv::Mat>{grey, grey, grey}, colour);
   for (const char* ext : {".png", ".pgm", ".pbm", ".ppm", ".jpg", ".bmp", ".tiff"}) {
     std::vector<unsigned char> buf;
-    ASSERT_TRUE(cv::imencode(ext, std::string(ext) == ".ppm" ? colour : grey, buf)) << ext;
+    ASSERT_TRUE(io::codecs::imencode(ext, std::string(ext) == ".ppm" ? colour : grey, buf)) << ext;
     const auto h = read_image_header(buf.data(), buf.size());
     ASSERT_TRUE(h.has_value()) << ext;
     EXPECT_EQ(h->width, 8) << ext;
@@ -349,7 +350,7 @@ TEST(FuzzRegressions, ImageHeadersOfEveryAcceptedFormat) {
   }
   // Truncated headers are no image.
   std::vector<unsigned char> png;
-  cv::imencode(".png", grey, png);
+  io::codecs::imencode(".png", grey, png);
   png.resize(20);
   EXPECT_FALSE(read_image_header(png.data(), png.size()).has_value());
 }

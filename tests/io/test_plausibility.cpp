@@ -8,11 +8,12 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*, cv::IMWRITE_*
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
 #include "rtslam/io/calibration.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/source.hpp"
 
@@ -96,7 +97,7 @@ TEST(ImuRange, EurocReaderTakesTheFullScaleFromSensorYaml) {
 
 std::vector<unsigned char> encode(const cv::Mat& m, const std::string& ext) {
   std::vector<unsigned char> buf;
-  EXPECT_TRUE(cv::imencode(ext, m, buf));
+  EXPECT_TRUE(io::codecs::imencode(ext, m, buf));
   return buf;
 }
 
@@ -137,7 +138,7 @@ TEST(ImageDepth, ColourSixteenBitIsConvertedAndFloatPixelsAreRefused) {
 TEST(ImageDepth, AFloatTiffInAFolderIsAnErrorNamingTheFile) {
   // The header check (image_header.hpp) refuses it before decoding; to_grey8 would too.
   TempDir dir;
-  cv::imwrite(dir / "0.tiff", cv::Mat(48, 64, CV_32FC1, cv::Scalar(0.5)));
+  io::codecs::imwrite(dir / "0.tiff", cv::Mat(48, 64, CV_32FC1, cv::Scalar(0.5)));
   write_text(dir / "camera.json",
              R"({"model": "pinhole", "width": 64, "height": 48, "fps": 10, "focal_length_x": 50,
                  "focal_length_y": 50, "principal_point_x": 32, "principal_point_y": 24})");

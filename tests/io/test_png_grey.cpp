@@ -12,9 +12,10 @@
 #include <vector>
 
 #include <libdeflate.h>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*, cv::IMWRITE_*
 
 #include "io_test_util.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/image_header.hpp"
 #include "rtslam/io/png_grey.hpp"
 #include "rtslam/io/source.hpp"
@@ -101,7 +102,7 @@ cv::Mat textured(int w, int h) {
 }
 
 cv::Mat opencv_decode(const Bytes& png) {
-  return cv::imdecode(cv::Mat(1, static_cast<int>(png.size()), CV_8UC1, const_cast<unsigned char*>(png.data())),
+  return io::codecs::imdecode(cv::Mat(1, static_cast<int>(png.size()), CV_8UC1, const_cast<unsigned char*>(png.data())),
                       cv::IMREAD_GRAYSCALE);
 }
 
@@ -178,7 +179,7 @@ TEST(PngGrey, OpenCvWrittenPngsDecodeTheSame) {
   const cv::Mat img = textured(97, 33);
   for (int level : {0, 1, 9}) {
     std::vector<unsigned char> png;
-    ASSERT_TRUE(cv::imencode(".png", img, png, {cv::IMWRITE_PNG_COMPRESSION, level}));
+    ASSERT_TRUE(io::codecs::imencode(".png", img, png, {cv::IMWRITE_PNG_COMPRESSION, level}));
     cv::Mat fast;
     ASSERT_TRUE(decode_png_grey8(png.data(), png.size(), kMaxPixels, fast)) << "level " << level;
     EXPECT_EQ(cv::norm(fast, img, cv::NORM_INF), 0.0) << "level " << level;
@@ -196,8 +197,8 @@ TEST(ReadGreyImage, ReadsEachFileWholeWhateverCameBefore) {
   test::TempDir dir;
   const cv::Mat big = textured(512, 400), small = textured(17, 9);
   Bytes big_png, small_png;
-  ASSERT_TRUE(cv::imencode(".png", big, big_png, {cv::IMWRITE_PNG_COMPRESSION, 0}));
-  ASSERT_TRUE(cv::imencode(".png", small, small_png));
+  ASSERT_TRUE(io::codecs::imencode(".png", big, big_png, {cv::IMWRITE_PNG_COMPRESSION, 0}));
+  ASSERT_TRUE(io::codecs::imencode(".png", small, small_png));
   ASSERT_GT(big_png.size(), std::size_t{3} << 16);  // several of the blocks a file of unknown size is read in
   write_bytes(dir / "big.png", big_png);
   write_bytes(dir / "small.png", small_png);

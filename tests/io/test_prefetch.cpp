@@ -10,10 +10,11 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // cv::IMREAD_*, cv::IMWRITE_*
 
 #include "io_test_util.hpp"
 #include "rtslam/core/error.hpp"
+#include "rtslam/io/codecs.hpp"
 #include "rtslam/io/dataset.hpp"
 #include "rtslam/io/prefetch.hpp"
 #include "rtslam/io/writers.hpp"
@@ -145,7 +146,7 @@ TEST(Prefetch, SixteenBitImagesAreScaledInStreamOrder) {
       cv::Mat img(48, 64, CV_16UC1);
       rng.fill(img, cv::RNG::UNIFORM, 0, k % 2 == 0 ? 4081 : 766);
       img.at<std::uint16_t>(0, 0) = k % 2 == 0 ? 4080 : 765;
-      ASSERT_TRUE(cv::imwrite(image_path(root, c, k), img));
+      ASSERT_TRUE(io::codecs::imwrite(image_path(root, c, k), img));
     }
   }
   expect_prefetch_changes_nothing(root, stereo_options());

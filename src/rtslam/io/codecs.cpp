@@ -158,9 +158,9 @@ std::unique_ptr<VideoReader> open_camera(int index, int api_preference) {
   return api().open_camera(index, api_preference);
 }
 
-std::unique_ptr<VideoWriter> open_video_writer(const std::string& path, int fourcc, double fps, cv::Size size,
-                                               bool color) {
-  return api().open_video_writer(path, fourcc, fps, size, color);
+std::unique_ptr<VideoWriter> open_video_writer(const std::string& path, int api_preference, int fourcc, double fps,
+                                               cv::Size size, bool color) {
+  return api().open_video_writer(path, api_preference, fourcc, fps, size, color);
 }
 
 }  // namespace rtslam::io::codecs

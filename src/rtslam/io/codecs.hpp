@@ -57,8 +57,9 @@ cv::Mat imdecode(const cv::Mat& buffer, int flags);
 std::unique_ptr<VideoReader> open_video(const std::string& path, int api);
 /// Capture device N (/dev/videoN) through backend `api` (cv::CAP_V4L2); nullptr when it cannot be opened.
 std::unique_ptr<VideoReader> open_camera(int index, int api);
-/// A video file to write (cv::VideoWriter::open's arguments); nullptr when no backend takes the codec.
-std::unique_ptr<VideoWriter> open_video_writer(const std::string& path, int fourcc, double fps, cv::Size size,
+/// A video file to write through backend `api` (cv::VideoWriter::open's arguments); nullptr when it does not take
+/// the codec.
+std::unique_ptr<VideoWriter> open_video_writer(const std::string& path, int api, int fourcc, double fps, cv::Size size,
                                                bool color);
 /// cv::VideoWriter::fourcc (computed here: it needs no plugin).
 constexpr int fourcc(char c1, char c2, char c3, char c4) {
@@ -81,7 +82,7 @@ struct PluginApi {
   cv::Mat (*imdecode)(const cv::Mat&, int);
   std::unique_ptr<VideoReader> (*open_video)(const std::string&, int);
   std::unique_ptr<VideoReader> (*open_camera)(int, int);
-  std::unique_ptr<VideoWriter> (*open_video_writer)(const std::string&, int, double, cv::Size, bool);
+  std::unique_ptr<VideoWriter> (*open_video_writer)(const std::string&, int, int, double, cv::Size, bool);
 };
 
 }  // namespace rtslam::io::codecs

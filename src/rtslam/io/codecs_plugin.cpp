@@ -52,9 +52,10 @@ const PluginApi kApi{
     [](const cv::Mat& buffer, int flags) { return cv::imdecode(buffer, flags); },
     [](const std::string& path, int api) { return reader_or_null(std::make_unique<cv::VideoCapture>(path, api)); },
     [](int index, int api) { return reader_or_null(std::make_unique<cv::VideoCapture>(index, api)); },
-    [](const std::string& path, int fourcc, double fps, cv::Size size, bool color) -> std::unique_ptr<VideoWriter> {
+    [](const std::string& path, int api, int fourcc, double fps, cv::Size size,
+       bool color) -> std::unique_ptr<VideoWriter> {
       auto writer = std::make_unique<cv::VideoWriter>();
-      if (!writer->open(path, fourcc, fps, size, color)) return nullptr;
+      if (!writer->open(path, api, fourcc, fps, size, color)) return nullptr;
       return std::make_unique<FileWriter>(std::move(writer));
     },
 };

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>  // cv::IMWRITE_*
+#include <opencv2/videoio.hpp>    // cv::CAP_*
 #include <opencv2/imgproc.hpp>
 
 #include "rtslam/core/error.hpp"
@@ -237,7 +238,7 @@ void VideoWriter::open(double fps, cv::Size size) {
     const int code = io::codecs::fourcc(cc[0], cc[1], cc[2], cc[3]);
     bool ok = false;
     try {
-      writer_ = io::codecs::open_video_writer(path_, code, fps, size, true);
+      writer_ = io::codecs::open_video_writer(path_, cv::CAP_ANY, code, fps, size, true);
       ok = writer_ != nullptr;
     } catch (const cv::Exception&) {
       ok = false;

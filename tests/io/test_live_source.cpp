@@ -130,6 +130,40 @@ TEST(LiveSource, ImagesThatWaitedWhileNoImuSampleHadComeAreDroppedAndCounted) {
   EXPECT_EQ(src.stats().problems(), 0u);  // not bad input
 }
 
+// Whatever the timing, a frame that no IMU sample covers is never released while none has come: the decision
+// to drop it and the one to release it read the clock once (read twice, a deadline passing between the two reads
+// released the frame to the filter, which then ended with "the IMU stream ends before the images" instead of "no
+// IMU sample came"). Frames pushed every few microseconds, each waiting at most 40 us, wake the consumer near its
+// front frame's deadline many thousand times.
+TEST(LiveSource, NoFrameIsReleasedBeforeTheImusFirstSampleWhateverTheTiming) {
+  LiveSource::Options o;
+  o.with_imu = true;
+  o.max_image_wait_s = 40e-6;
+  o.image_capacity = 1000;
+  LiveSource src(o);
+  std::atomic<std::size_t> released{0};
+  std::thread consumer([&] {
+    while (auto m = src.next()) {
+      if (std::holds_alternative<ImageFrame>(*m)) ++released;
+    }
+  });
+  const auto end = Clock::now() + std::chrono::milliseconds(400);
+  TimeNs t = 0;
+  std::size_t pushed = 0;
+  while (Clock::now() < end) {
+    src.push_image(image_at(t += 1000));
+    ++pushed;
+    const auto next = Clock::now() + std::chrono::microseconds(7);
+    while (Clock::now() < next) {
+    }
+  }
+  src.close();
+  consumer.join();
+  EXPECT_EQ(released.load(), 0u) << "of " << pushed << " frames";
+  EXPECT_EQ(src.stats().live_images_before_imu + src.stats().live_dropped_images, pushed);
+  RecordProperty("frames", static_cast<int>(pushed));
+}
+
 TEST(LiveSource, BadStampsAndValuesAreSkippedAndCounted) {
   LiveSource::Options o;
   o.with_imu = true;

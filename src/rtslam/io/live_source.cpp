@@ -128,7 +128,10 @@ std::optional<Measurement> LiveSource::next() {
       const auto deadline = q.arrived + std::chrono::duration_cast<Clock::duration>(
                                             std::chrono::duration<double>(options_.max_image_wait_s));
       const bool covered = !options_.with_imu || (last_imu_t_ && *last_imu_t_ >= q.frame.t);
-      if (!covered && !last_imu_t_ && (closed_ || Clock::now() >= deadline)) {
+      // One reading of the clock for both decisions: read twice, the deadline could pass between them and release
+      // a frame that no IMU sample will ever cover instead of dropping it.
+      const bool waited_enough = closed_ || Clock::now() >= deadline;
+      if (!covered && !last_imu_t_ && waited_enough) {
         // No IMU sample yet after the wait (or ever: the source closed): an inertial filter starts from the IMU, so
         // the frame is of no use (released, it would be parked until the IMU came, and an IMU stream started late
         // would fill the pipeline).
@@ -140,7 +143,7 @@ std::optional<Measurement> LiveSource::next() {
         }
         continue;
       }
-      if (covered || closed_ || Clock::now() >= deadline) {
+      if (covered || waited_enough) {
         ImageFrame frame = q.frame;
         images_.pop_front();
         ++stats_.images;

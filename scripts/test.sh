@@ -23,7 +23,8 @@ ctest --test-dir build -LE slow --output-on-failure -j "$jobs"
 # line tables only: sanitizer reports still name files and lines. Without the ROS parts: their tests exercise ROS's
 # own (uninstrumented) libraries more than ours, the Release suite runs them, and they cost ~2 min of the CI budget.
 # UBSan leaves Eigen's headers out (cmake/ubsan-ignore.txt): the build ~15 % and the suite ~half shorter, our own
-# code still fully checked (test_core_sanitizers).
+# code still fully checked (test_core_sanitizers). The tests' own code at -O0, but for the folders that compute
+# heavily in it (tests/CMakeLists.txt rtslam_tests_optimized): ~95 s less on 2 cores (docs/testing.md).
 # A build-asan/ configured with another compiler (GCC, before 26 Nov 2026) is started afresh.
 if [[ -f build-asan/CMakeCache.txt ]] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++' build-asan/CMakeCache.txt; then
   rm -rf build-asan

@@ -5,9 +5,11 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -344,16 +346,22 @@ TEST(CliLive, ACameraAndItsImuStreamThroughAFifoRunInertialSlamAtRest) {
   fs::remove_all(d);
 }
 
-// An IMU stream whose writer opens it and never writes: the camera's frames are dropped while no sample has come
-// (counted), and when the writer closes the stream the run ends with an error saying that no IMU sample came.
-TEST(CliLive, AnImuStreamThatNeverDeliversEndsWithAnErrorSayingSo) {
+/// A live rig whose IMU stream will never deliver: the video standing in for the camera, a rig calibration with an
+/// IMU, and the FIFO of the IMU stream (the run's command line: `args`).
+struct SilentImuRig {
+  fs::path dir, fifo;
+  std::string args;
+};
+
+SilentImuRig silent_imu_rig(const std::string& name) {
   const fs::path sim = simulated_sequence();
-  const fs::path d = fs::temp_directory_path() / "rtslam_test_cli_live_no_imu";
-  fs::remove_all(d);
-  fs::create_directories(d);
-  const fs::path video = write_still_video(sim / "mav0" / "cam0" / "data", d / "camera.avi", 10);
-  ASSERT_FALSE(video.empty());
-  const fs::path rig = d / "rig.yaml";
+  SilentImuRig r;
+  r.dir = fs::temp_directory_path() / name;
+  fs::remove_all(r.dir);
+  fs::create_directories(r.dir);
+  const fs::path video = write_still_video(sim / "mav0" / "cam0" / "data", r.dir / "camera.avi", 10);
+  EXPECT_FALSE(video.empty());
+  const fs::path rig = r.dir / "rig.yaml";
   rtslam::io::write_rig_yaml(rig.string(), rtslam::io::load_euroc_folder_calibration(
                                                (sim / "mav0").string(), {0}, rtslam::io::FolderImu::Skip));
   {  // (the simulated sequence has no IMU: its calibration is completed with one)
@@ -361,23 +369,60 @@ TEST(CliLive, AnImuStreamThatNeverDeliversEndsWithAnErrorSayingSo) {
     f << "imu:\n  rate_hz: 200\n  gyro_noise_density: 1.7e-4\n  gyro_random_walk: 2e-5\n"
          "  accel_noise_density: 2e-3\n  accel_random_walk: 3e-3\n";
   }
-  const fs::path fifo = d / "imu.fifo";
-  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  r.fifo = r.dir / "imu.fifo";
+  EXPECT_EQ(::mkfifo(r.fifo.c_str(), 0600), 0);
+  r.args = fmt::format("run --dataset camera:{} --calibration {} --imu-stream {} --config {} --quiet --out {}",
+                       video.string(), rig.string(), r.fifo.string(), RTSLAM_SOURCE_DIR "/config/sim_mono_imu.yaml",
+                       (r.dir / "out").string());
+  return r;
+}
+
+// An IMU stream whose writer opens it and never writes: the camera's frames are dropped while no sample has come
+// (counted), and when the writer closes the stream the run ends with an error saying that no IMU sample came.
+TEST(CliLive, AnImuStreamThatNeverDeliversEndsWithAnErrorSayingSo) {
+  const SilentImuRig rig = silent_imu_rig("rtslam_test_cli_live_no_imu");
   std::thread writer([&] {
-    const int fd = open_fifo_writer(fifo);
+    const int fd = open_fifo_writer(rig.fifo);
     if (fd < 0) return;
     std::this_thread::sleep_for(std::chrono::milliseconds(2000));  // frames wait 0.5 s each, then are dropped
     ::close(fd);
   });
-  const LiveResult r = run_cli(fmt::format("run --dataset camera:{} --calibration {} --imu-stream {} --config {} "
-                                           "--quiet --out {}",
-                                           video.string(), rig.string(), fifo.string(),
-                                           RTSLAM_SOURCE_DIR "/config/sim_mono_imu.yaml", (d / "out").string()));
+  const LiveResult r = run_cli(rig.args);
   writer.join();
   EXPECT_NE(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("no IMU sample came ("), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("camera frame(s) dropped waiting for the first one"), std::string::npos) << r.out;
-  fs::remove_all(d);
+  fs::remove_all(rig.dir);
+}
+
+// --stop-after ends a live run whose IMU stream stays open and silent (nothing is processed before the IMU's first
+// sample, so the window of processed times never closes): once the dropped frames span the window, the run ends
+// with the same error, while the writer still holds the stream open.
+TEST(CliLive, StopAfterEndsARunWhoseImuNeverDelivers) {
+  const SilentImuRig rig = silent_imu_rig("rtslam_test_cli_live_no_imu_stop_after");
+  std::mutex mu;
+  std::condition_variable cv;
+  bool run_ended = false, writer_closed_first = false;
+  std::thread writer([&] {
+    const int fd = open_fifo_writer(rig.fifo);
+    if (fd < 0) return;
+    std::unique_lock lock(mu);
+    // Held open until the run has ended (at most 120 s: a run that does not end on its own then ends with it).
+    if (!cv.wait_for(lock, std::chrono::seconds(120), [&] { return run_ended; })) writer_closed_first = true;
+    ::close(fd);
+  });
+  const LiveResult r = run_cli(rig.args + " --stop-after 1");
+  {
+    std::lock_guard lock(mu);
+    run_ended = true;
+  }
+  cv.notify_all();
+  writer.join();
+  EXPECT_FALSE(writer_closed_first) << "the run did not end before its IMU stream was closed";
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("no IMU sample in the 1 s of input to process"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no IMU sample came ("), std::string::npos) << r.out;
+  fs::remove_all(rig.dir);
 }
 
 // The pairing's one-line errors: an IMU stream without an inertial configuration, with a non-live dataset, a

@@ -164,6 +164,40 @@ TEST(LiveSource, NoFrameIsReleasedBeforeTheImusFirstSampleWhateverTheTiming) {
   RecordProperty("frames", static_cast<int>(pushed));
 }
 
+// A run limited in time (--stop-after) processes nothing before the IMU's first sample, so its window of processed
+// times would never close on a silent IMU: the source ends itself once the dropped frames span that time.
+TEST(LiveSource, WithoutAnyImuSampleTheStreamEndsOnceTheDroppedFramesSpanTheTimeToProcess) {
+  LiveSource::Options o;
+  o.with_imu = true;
+  o.max_image_wait_s = 0.001;
+  o.end_without_imu_after_s = 0.05;
+  LiveSource src(o);
+  constexpr TimeNs kMs = 1'000'000;
+  for (TimeNs k = 0; k < 4; ++k) src.push_image(image_at(1000 * kMs + k * 10 * kMs));  // 30 ms of frames
+  std::atomic<bool> ended{false};
+  std::optional<Measurement> last;
+  std::thread consumer([&] {
+    last = src.next();
+    ended = true;
+  });
+  for (int k = 0; k < 2000 && src.stats().live_images_before_imu < 4; ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(src.stats().live_images_before_imu, 4u);
+  EXPECT_FALSE(ended.load()) << "ended before the dropped frames spanned 50 ms";
+  for (TimeNs k = 4; k < 8; ++k) src.push_image(image_at(1000 * kMs + k * 10 * kMs));  // the one at 50 ms ends it
+  consumer.join();
+  EXPECT_FALSE(last.has_value());
+  EXPECT_EQ(src.stats().live_images_before_imu, 8u);  // the frames queued behind it are dropped and counted too
+  src.push_image(image_at(2000 * kMs));  // ignored: the stream has ended
+  EXPECT_FALSE(src.next().has_value());
+  EXPECT_EQ(src.stats().live_images_before_imu, 8u);
+
+  o.end_without_imu_after_s = -1.0;
+  EXPECT_THROW(LiveSource{o}, ConfigError);
+}
+
 TEST(LiveSource, BadStampsAndValuesAreSkippedAndCounted) {
   LiveSource::Options o;
   o.with_imu = true;

@@ -504,6 +504,9 @@ Dataset open_camera(const std::string& spec, const DatasetOptions& o) {
   auto imu = std::make_unique<ImuStreamReader>(o.imu_stream, ro);
   LiveSource::Options lo;
   lo.policy = o.bad_input;
+  // --stop-after ends the run by the times of what it processes (WindowSource, below), and nothing is processed
+  // before the IMU's first sample: the live source ends a run whose IMU never delivers after that much input.
+  if (o.duration_s > 0.0) lo.end_without_imu_after_s = o.start_offset_s + o.duration_s;
   ds.source = std::make_unique<LiveRigSource>(std::move(src), std::move(imu), lo);
   return ds;
 }

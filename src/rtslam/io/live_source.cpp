@@ -20,6 +20,10 @@ LiveSource::LiveSource(const Options& options)
   if (!(options.max_image_wait_s >= 0.0)) {
     throw ConfigError(fmt::format("live source: max_image_wait_s = {} must be >= 0", options.max_image_wait_s));
   }
+  if (!(options.end_without_imu_after_s >= 0.0)) {
+    throw ConfigError(fmt::format("live source: end_without_imu_after_s = {} must be >= 0",
+                                  options.end_without_imu_after_s));
+  }
 }
 
 void LiveSource::report_locked(std::size_t SourceStats::*counter, const std::string& message, bool file_problem) {
@@ -43,6 +47,7 @@ void LiveSource::push_image(ImageFrame frame) {
                     false);
     } else {
       last_image_t_ = frame.t;
+      if (!first_t_) first_t_ = frame.t;
       if (images_.size() >= options_.image_capacity) {
         images_.pop_front();
         if (++stats_.live_dropped_images <= 10 || stats_.live_dropped_images % 100 == 0) {
@@ -71,6 +76,7 @@ void LiveSource::push_imu(const ImuSample& sample) {
                     false);
     } else {
       last_imu_t_ = sample.t;
+      if (!first_t_) first_t_ = sample.t;
       if (imu_.size() >= options_.imu_capacity) {
         imu_.pop_front();
         if (++stats_.live_dropped_imu_samples <= 10 || stats_.live_dropped_imu_samples % 1000 == 0) {
@@ -135,11 +141,20 @@ std::optional<Measurement> LiveSource::next() {
         // No IMU sample yet after the wait (or ever: the source closed): an inertial filter starts from the IMU, so
         // the frame is of no use (released, it would be parked until the IMU came, and an IMU stream started late
         // would fill the pipeline).
+        const TimeNs t = q.frame.t;
         images_.pop_front();
         const std::size_t n = ++stats_.live_images_before_imu;
         if (n == 1 || n % 100 == 0) {
           logger(options_.log_name)
               ->warn("no IMU sample yet: {} camera frame(s) dropped waiting for the IMU's first one", n);
+        }
+        if (!closed_ && options_.end_without_imu_after_s > 0.0 && first_t_ &&
+            1e-9 * (static_cast<double>(t) - static_cast<double>(*first_t_)) >= options_.end_without_imu_after_s) {
+          logger(options_.log_name)
+              ->warn("no IMU sample in the {:g} s of input to process ({} camera frame(s) dropped): the live input "
+                     "ends",
+                     options_.end_without_imu_after_s, n);
+          closed_ = true;  // the frames still queued are dropped and counted as well
         }
         continue;
       }

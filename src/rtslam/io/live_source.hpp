@@ -8,7 +8,8 @@
 // are yielded first), or for at most `max_image_wait_s` of wall time (the IMU stream lags or stopped; the pipeline
 // then waits for IMU data itself), or until the source is closed. An image still waiting (or left at the close) when
 // no IMU sample has come at all is dropped (counted: SourceStats::live_images_before_imu; an inertial filter starts
-// from the IMU, and an IMU stream started late would otherwise fill the pipeline with frames it can only park). The
+// from the IMU, and an IMU stream started late would otherwise fill the pipeline with frames it can only park; with
+// `end_without_imu_after_s` the stream ends once the dropped frames span that time). The
 // stream is time-ordered per sensor, not across them: an image that arrives after IMU samples later than it were
 // yielded (a camera frame reaches the host tens of ms after its exposure, an IMU sample within a millisecond) comes
 // after those samples; the inertial robot buffers IMU samples ahead of its time (slam/robot.hpp), so the image is
@@ -41,6 +42,9 @@ class LiveSource final : public Source {
     std::size_t imu_capacity = 4000;  // queued IMU samples (≥ 1): 20 s at 200 Hz
     bool with_imu = false;            // images wait for the IMU samples that cover them
     double max_image_wait_s = 0.5;    // wall time an image waits for IMU coverage at most
+    // > 0: while no IMU sample has come, the stream ends at the first image dropped this long (s) after the first
+    // measurement pushed: a run limited in time (--start-at + --stop-after) ends even if its IMU never delivers.
+    double end_without_imu_after_s = 0.0;
     BadInputPolicy policy = BadInputPolicy::Skip;  // Error: the first problem ends the stream (see above)
     std::string log_name = "live";                 // the logger of its warnings ("ros" for the node)
   };
@@ -90,6 +94,7 @@ class LiveSource final : public Source {
   std::exception_ptr error_;  // thrown by next() once the queues before it are drained
   std::optional<TimeNs> last_image_t_;  // newest accepted stamps
   std::optional<TimeNs> last_imu_t_;
+  std::optional<TimeNs> first_t_;  // the first accepted measurement's stamp
   bool closed_ = false;
 
   /// Counts a problem (the lock held); under Error the reporter's exception ends the stream (error_, closed_).

@@ -9,9 +9,10 @@
 # (rtslam_module_settings, rtslam_test_settings), and reused (REUSE_FROM) by each candidate of that kind whose own
 # options are exactly the holder's: "module" for the module libraries and the programs built like them, "test" for
 # the test executables. A candidate that adds options of its own (-ffp-contract=off of the filter and the
-# simulator, the fuzzer's coverage hooks on core and io, a test's FULL_OPT) parses its headers itself, and so does a
-# source file with options or definitions of its own (the ROS parts' -std=c++17, the viewer's embedded assets). The Release tree (GCC) uses none, so it still checks that every unit
-# includes what it uses.
+# simulator, the fuzzer's coverage hooks on core and io, a test's FULL_OPT, the -O1 of the test folders that keep it
+# under the sanitizers: tests/CMakeLists.txt rtslam_tests_optimized) parses its headers itself, and so does a source
+# file with options or definitions of its own (the ROS parts' -std=c++17, the viewer's embedded assets). The Release
+# tree (GCC) uses none, so it still checks that every unit includes what it uses.
 set(RTSLAM_PCH_HEADERS
   <algorithm> <array> <chrono> <cmath> <cstddef> <cstdint> <cstdio> <filesystem> <fstream> <functional> <map>
   <memory> <mutex> <optional> <ostream> <sstream> <string> <string_view> <thread> <unordered_map> <utility> <variant>

@@ -154,8 +154,7 @@ TEST(LiveSource, NoFrameIsReleasedBeforeTheImusFirstSampleWhateverTheTiming) {
     src.push_image(image_at(t += 1000));
     ++pushed;
     const auto next = Clock::now() + std::chrono::microseconds(7);
-    while (Clock::now() < next) {
-    }
+    while (Clock::now() < next) std::this_thread::yield();
   }
   src.close();
   consumer.join();
@@ -171,29 +170,37 @@ TEST(LiveSource, WithoutAnyImuSampleTheStreamEndsOnceTheDroppedFramesSpanTheTime
   o.with_imu = true;
   o.max_image_wait_s = 0.001;
   o.end_without_imu_after_s = 0.05;
-  LiveSource src(o);
   constexpr TimeNs kMs = 1'000'000;
-  for (TimeNs k = 0; k < 4; ++k) src.push_image(image_at(1000 * kMs + k * 10 * kMs));  // 30 ms of frames
-  std::atomic<bool> ended{false};
-  std::optional<Measurement> last;
-  std::thread consumer([&] {
-    last = src.next();
-    ended = true;
-  });
-  for (int k = 0; k < 2000 && src.stats().live_images_before_imu < 4; ++k) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const auto frame = [&](TimeNs k) { return image_at(1000 * kMs + k * 10 * kMs); };  // every 10 ms
+  {  // Frames spanning less than 50 ms are dropped and the stream goes on; the one at 50 ms ends it.
+    LiveSource src(o);
+    for (TimeNs k = 0; k < 4; ++k) src.push_image(frame(k));
+    std::atomic<bool> ended{false};
+    std::optional<Measurement> last;
+    std::thread consumer([&] {
+      last = src.next();
+      ended = true;
+    });
+    for (int k = 0; k < 2000 && src.stats().live_images_before_imu < 4; ++k) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    EXPECT_EQ(src.stats().live_images_before_imu, 4u);
+    EXPECT_FALSE(ended.load()) << "ended before the dropped frames spanned 50 ms";
+    src.push_image(frame(5));
+    consumer.join();
+    EXPECT_FALSE(last.has_value());
+    EXPECT_EQ(src.stats().live_images_before_imu, 5u);
+    src.push_image(frame(6));  // ignored: the stream has ended
+    EXPECT_FALSE(src.next().has_value());
+    EXPECT_EQ(src.stats().live_images_before_imu, 5u);
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  EXPECT_EQ(src.stats().live_images_before_imu, 4u);
-  EXPECT_FALSE(ended.load()) << "ended before the dropped frames spanned 50 ms";
-  for (TimeNs k = 4; k < 8; ++k) src.push_image(image_at(1000 * kMs + k * 10 * kMs));  // the one at 50 ms ends it
-  consumer.join();
-  EXPECT_FALSE(last.has_value());
-  EXPECT_EQ(src.stats().live_images_before_imu, 8u);  // the frames queued behind it are dropped and counted too
-  src.push_image(image_at(2000 * kMs));  // ignored: the stream has ended
-  EXPECT_FALSE(src.next().has_value());
-  EXPECT_EQ(src.stats().live_images_before_imu, 8u);
-
+  {  // The frames queued behind the one that ends the stream are dropped and counted too.
+    LiveSource src(o);
+    for (TimeNs k = 0; k < 8; ++k) src.push_image(frame(k));
+    EXPECT_FALSE(src.next().has_value());
+    EXPECT_EQ(src.stats().live_images_before_imu, 8u);
+  }
   o.end_without_imu_after_s = -1.0;
   EXPECT_THROW(LiveSource{o}, ConfigError);
 }
@@ -281,9 +288,14 @@ TEST(LiveSource, ProducerThreadsAndTheConsumerSeeOneTimeOrderedStream) {
   EXPECT_EQ(imu, static_cast<std::size_t>(kImages * kImuPerImage + 2));
 }
 
-TEST(LiveSource, RefusesEmptyQueues) {
+TEST(LiveSource, RefusesEmptyQueuesAndUnboundedWaits) {
   LiveSource::Options o;
   o.image_capacity = 0;
+  EXPECT_THROW(LiveSource{o}, ConfigError);
+  o.image_capacity = 1;
+  o.max_image_wait_s = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(LiveSource{o}, ConfigError);
+  o.max_image_wait_s = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(LiveSource{o}, ConfigError);
 }
 

@@ -17,8 +17,8 @@ LiveSource::LiveSource(const Options& options)
     throw ConfigError(fmt::format("live source: queue sizes must be >= 1 (images {}, IMU {})", options.image_capacity,
                                   options.imu_capacity));
   }
-  if (!(options.max_image_wait_s >= 0.0)) {
-    throw ConfigError(fmt::format("live source: max_image_wait_s = {} must be >= 0", options.max_image_wait_s));
+  if (!(options.max_image_wait_s >= 0.0 && options.max_image_wait_s <= 3600.0)) {  // (a duration: bounded)
+    throw ConfigError(fmt::format("live source: max_image_wait_s = {} must be in [0, 3600]", options.max_image_wait_s));
   }
   if (!(options.end_without_imu_after_s >= 0.0)) {
     throw ConfigError(fmt::format("live source: end_without_imu_after_s = {} must be >= 0",

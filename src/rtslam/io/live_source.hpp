@@ -9,11 +9,11 @@
 // then waits for IMU data itself), or until the source is closed. An image still waiting (or left at the close) when
 // no IMU sample has come at all is dropped (counted: SourceStats::live_images_before_imu; an inertial filter starts
 // from the IMU, and an IMU stream started late would otherwise fill the pipeline with frames it can only park; with
-// `end_without_imu_after_s` the stream ends once the dropped frames span that time). The
-// stream is time-ordered per sensor, not across them: an image that arrives after IMU samples later than it were
-// yielded (a camera frame reaches the host tens of ms after its exposure, an IMU sample within a millisecond) comes
-// after those samples; the inertial robot buffers IMU samples ahead of its time (slam/robot.hpp), so the image is
-// still processed at its own time.
+// `end_without_imu_after_s` the stream ends once the dropped frames span that time). The stream is time-ordered per
+// sensor, not across them: an image that arrives after IMU samples later than it were yielded (a camera frame
+// reaches the host tens of ms after its exposure, an IMU sample within a millisecond) comes after those samples; the
+// inertial robot buffers IMU samples ahead of its time (slam/robot.hpp), so the image is still processed at its own
+// time.
 //
 // Checks: per stream, stamps must increase strictly (duplicates and backwards stamps), IMU values must be finite,
 // images the producer could not convert are counted as undecodable (report_bad_image), and producers report their own

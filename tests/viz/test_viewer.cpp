@@ -373,6 +373,30 @@ TEST(Viewer, AFifthPageIsRefused) {
   EXPECT_EQ(http_get(v.port(), "/api/status").status, 200);
 }
 
+// Pages that connect at the same moment all pass the check made before the handshake: the limit is enforced when
+// a page is added. Eight at once: four are served (hello), the others closed without one.
+TEST(Viewer, PagesConnectingAtOnceNeverExceedTheLimit) {
+  Viewer v(loopback());
+  std::vector<std::unique_ptr<WsClient>> pages(8);
+  std::vector<std::thread> openers;
+  for (auto& page : pages) openers.emplace_back([&] { page = std::make_unique<WsClient>(v.port()); });
+  for (auto& t : openers) t.join();
+  const auto hello = [](const auto& ms) { return WsClient::count_type(ms, "hello") == 1; };
+  int served = 0, refused = 0;
+  for (auto& page : pages) {
+    if (page->connected() && page->wait_for(hello)) {  // (the wait ends at once for a page closed by the viewer)
+      ++served;
+    } else {
+      ++refused;
+      EXPECT_TRUE(!page->connected() || page->closed()) << "a page over the limit is left open";
+    }
+  }
+  EXPECT_EQ(served, 4);
+  EXPECT_EQ(refused, 4);
+  EXPECT_EQ(v.stats().clients, 4);
+  EXPECT_EQ(http_get(v.port(), "/api/status").status, 200);
+}
+
 TEST(Viewer, AddressesAreIpv4AndPortsAndBadOnesAreNamed) {
   EXPECT_EQ(parse_address("127.0.0.1:8080"), std::make_pair(std::string("127.0.0.1"), 8080));
   EXPECT_EQ(parse_address("9000"), std::make_pair(std::string("127.0.0.1"), 9000)) << "loopback by default";

@@ -494,15 +494,29 @@ class Viewer::Impl {
     return 1;
   }
 
+  // The page limit is enforced here, under the clients' lock: ws_connect's check is only a fast path, and pages
+  // that connect at the same moment all pass it. One over the limit is closed at once (1013, "try again later"),
+  // without being added; CivetWeb then ends its read loop and calls ws_close, which finds nothing to remove.
   static void ws_ready(mg_connection* conn, void* cbdata) {
     auto* self = static_cast<Impl*>(cbdata);
     auto c = std::make_unique<Client>();
     c->conn = conn;
-    mg_set_user_connection_data(conn, c.get());
+    bool refused = false;
     {
       std::lock_guard<std::mutex> lock(self->clients_mu_);
-      self->clients_.push_back(std::move(c));
-      self->clients_count_ = static_cast<int>(self->clients_.size());
+      if (self->clients_.size() >= static_cast<std::size_t>(kMaxClients)) {
+        refused = true;
+      } else {
+        mg_set_user_connection_data(conn, c.get());
+        self->clients_.push_back(std::move(c));
+        self->clients_count_ = static_cast<int>(self->clients_.size());
+      }
+    }
+    if (refused) {
+      logger("viz")->warn("viewer: WebSocket refused: {} pages are connected already", kMaxClients);
+      const char going_away[2] = {0x03, static_cast<char>(0xF5)};  // status 1013, big-endian
+      mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, going_away, sizeof going_away);
+      return;
     }
     self->queue_.wake();
   }

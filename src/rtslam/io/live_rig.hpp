@@ -7,8 +7,8 @@
 //
 // The stream ends when the IMU stream ends (its writer closed it; logged), when the camera fails (its error is thrown
 // by next() after the measurements queued before it), on interrupt(), or, with LiveSource::Options::
-// end_without_imu_after_s (--stop-after), when the frames dropped while no IMU sample has come span that time. A run reads it through RealtimeSource
-// (live), which takes the newest image and never drops an IMU sample.
+// end_without_imu_after_s (--stop-after), when the frames dropped while no IMU sample has come span that time. A run
+// reads it through RealtimeSource (live), which takes the newest image and never drops an IMU sample.
 #include <atomic>
 #include <memory>
 #include <mutex>

@@ -514,8 +514,8 @@ class Viewer::Impl {
     }
     if (refused) {
       logger("viz")->warn("viewer: WebSocket refused: {} pages are connected already", kMaxClients);
-      const char going_away[2] = {0x03, static_cast<char>(0xF5)};  // status 1013, big-endian
-      mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, going_away, sizeof going_away);
+      const char try_again_later[2] = {0x03, static_cast<char>(0xF5)};  // close status 1013, big-endian
+      mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, try_again_later, sizeof try_again_later);
       return;
     }
     self->queue_.wake();

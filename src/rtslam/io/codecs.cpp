@@ -3,6 +3,7 @@
 #include <dlfcn.h>
 #include <link.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -84,10 +85,7 @@ Loaded load() {
   Loaded out;
   std::vector<std::string> candidates;
   const auto add = [&candidates](std::string path) {
-    for (const std::string& c : candidates) {
-      if (c == path) return;
-    }
-    candidates.push_back(std::move(path));
+    if (std::find(candidates.begin(), candidates.end(), path) == candidates.end()) candidates.push_back(std::move(path));
   };
   std::error_code ec;
   if (const char* env = std::getenv("RTSLAM_CODECS_PLUGIN"); env != nullptr && *env != '\0') {

@@ -47,7 +47,7 @@ void LiveSource::push_image(ImageFrame frame) {
                     false);
     } else {
       last_image_t_ = frame.t;
-      if (!first_t_) first_t_ = frame.t;
+      if (!first_image_t_) first_image_t_ = frame.t;
       if (images_.size() >= options_.image_capacity) {
         images_.pop_front();
         if (++stats_.live_dropped_images <= 10 || stats_.live_dropped_images % 100 == 0) {
@@ -76,7 +76,6 @@ void LiveSource::push_imu(const ImuSample& sample) {
                     false);
     } else {
       last_imu_t_ = sample.t;
-      if (!first_t_) first_t_ = sample.t;
       if (imu_.size() >= options_.imu_capacity) {
         imu_.pop_front();
         if (++stats_.live_dropped_imu_samples <= 10 || stats_.live_dropped_imu_samples % 1000 == 0) {
@@ -148,8 +147,9 @@ std::optional<Measurement> LiveSource::next() {
           logger(options_.log_name)
               ->warn("no IMU sample yet: {} camera frame(s) dropped waiting for the IMU's first one", n);
         }
-        if (!closed_ && options_.end_without_imu_after_s > 0.0 && first_t_ &&
-            1e-9 * (static_cast<double>(t) - static_cast<double>(*first_t_)) >= options_.end_without_imu_after_s) {
+        // (An image was queued, so first_image_t_ is set; the span in double: no integer overflow.)
+        const double span_s = 1e-9 * (static_cast<double>(t) - static_cast<double>(*first_image_t_));
+        if (!closed_ && options_.end_without_imu_after_s > 0.0 && span_s >= options_.end_without_imu_after_s) {
           logger(options_.log_name)
               ->warn("no IMU sample in the {:g} s of input to process ({} camera frame(s) dropped): the live input "
                      "ends",

@@ -43,7 +43,7 @@ class LiveSource final : public Source {
     bool with_imu = false;            // images wait for the IMU samples that cover them
     double max_image_wait_s = 0.5;    // wall time an image waits for IMU coverage at most
     // > 0: while no IMU sample has come, the stream ends at the first image dropped this long (s) after the first
-    // measurement pushed: a run limited in time (--start-at + --stop-after) ends even if its IMU never delivers.
+    // image pushed: a run limited in time (--start-at + --stop-after) ends even if its IMU never delivers.
     double end_without_imu_after_s = 0.0;
     BadInputPolicy policy = BadInputPolicy::Skip;  // Error: the first problem ends the stream (see above)
     std::string log_name = "live";                 // the logger of its warnings ("ros" for the node)
@@ -94,7 +94,7 @@ class LiveSource final : public Source {
   std::exception_ptr error_;  // thrown by next() once the queues before it are drained
   std::optional<TimeNs> last_image_t_;  // newest accepted stamps
   std::optional<TimeNs> last_imu_t_;
-  std::optional<TimeNs> first_t_;  // the first accepted measurement's stamp
+  std::optional<TimeNs> first_image_t_;  // the first accepted image's stamp (end_without_imu_after_s counts from it)
   bool closed_ = false;
 
   /// Counts a problem (the lock held); under Error the reporter's exception ends the stream (error_, closed_).

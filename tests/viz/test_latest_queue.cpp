@@ -109,6 +109,21 @@ TEST(LatestQueue, WakeEndsAWaitWithoutAnItem) {
   waker.join();
 }
 
+// The viewer thread reads wakes() before handing batches to the pages' senders: a sender done in between must end
+// the next wait at once, not after its 100 ms.
+TEST(LatestQueue, AWakeAfterTheCountWasReadIsNotMissed) {
+  LatestQueue<int> q(2);
+  const std::uint32_t seen = q.wakes();
+  q.wake();  // before the wait begins
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(q.pop_for(std::chrono::seconds(30), seen).has_value());
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(20));
+  // With the count read after the wake, the wait is a real one (here a short one).
+  const auto t1 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(q.pop_for(std::chrono::milliseconds(50), q.wakes()).has_value());
+  EXPECT_GE(std::chrono::steady_clock::now() - t1, std::chrono::milliseconds(40));
+}
+
 TEST(SpscRing, DeliversInOrderAndDropsTheNewWhenFull) {
   SpscRing<int> r(3);
   for (int i = 0; i < 5; ++i) r.push(i);

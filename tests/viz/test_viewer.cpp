@@ -1,7 +1,14 @@
 // The viewer's server on loopback: the page and its assets over HTTP, frames over WebSocket (JSON + JPEG), the
 // history for late clients, slow clients, the Origin check, addresses, and the replay of a run folder.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstring>
 #include <filesystem>
@@ -319,6 +326,86 @@ TEST(Viewer, PushNeverWaitsForABrowserThatDoesNotKeepUp) {
       if (!m.binary && m.as_json().value("type", "") == "frame" && m.as_json()["i"] == 1999) return true;
     return false;
   }));
+}
+
+// A page that completes the WebSocket handshake and then never reads: a browser tab frozen by its machine. Its receive
+// buffer is made small, so that writes to it block once what is in flight fills the two sockets' buffers.
+class StalledPage {
+ public:
+  explicit StalledPage(int port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd_ < 0) return;
+    const int small = 4096;
+    ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    const timeval wait{5, 0};
+    ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &wait, sizeof wait);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<std::uint16_t>(port));
+    ::inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
+    if (::connect(fd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) return;
+    const std::string self = "127.0.0.1:" + std::to_string(port);
+    const std::string request = "GET /ws HTTP/1.1\r\nHost: " + self +
+                                "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                                "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+                                "Origin: http://" + self + "\r\n\r\n";
+    if (::send(fd_, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size())) return;
+    std::string head;  // the response's header, one byte at a time: nothing of the messages after it is read
+    char ch = 0;
+    while (head.find("\r\n\r\n") == std::string::npos && ::recv(fd_, &ch, 1, 0) == 1) head += ch;
+    upgraded_ = head.rfind("HTTP/1.1 101", 0) == 0;
+  }
+  ~StalledPage() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  bool upgraded() const { return upgraded_; }
+
+ private:
+  int fd_ = -1;
+  bool upgraded_ = false;
+};
+
+bool is_hello(const WsClient::Message& m) {  // without parsing: the ground truth makes hellos of megabytes
+  constexpr std::string_view tail = R"("type":"hello"})";  // (nlohmann sorts the keys: "type" comes last)
+  return !m.binary && m.data.size() >= tail.size() &&
+         m.data.compare(m.data.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+// Each page has its own sender: a page that stops reading holds up nothing but itself. Every new ground truth goes
+// to both pages in a hello of about 1.5 MB, so the stalled page's buffers are full after the first few; before the
+// per-page senders, the viewer thread then waited in a write to it for CivetWeb's 10 s timeout, and the other page got
+// nothing meanwhile.
+TEST(Viewer, APageThatStopsReadingDelaysNoOtherPage) {
+  ViewerOptions o = loopback();
+  o.lower_priority = false;  // a loaded machine's other tests must not starve the pages' senders past the bound
+  Viewer v(o);
+  StalledPage stalled(v.port());
+  ASSERT_TRUE(stalled.upgraded());
+  for (int k = 0; k < 500 && v.stats().clients < 1; ++k) std::this_thread::sleep_for(10ms);
+  WsClient page(v.port());
+  ASSERT_TRUE(page.connected()) << page.error();
+  const auto hellos = [](const auto& ms) { return std::count_if(ms.begin(), ms.end(), is_hello); };
+  ASSERT_TRUE(page.wait_for([&](const auto& ms) { return hellos(ms) == 1; }));
+  ASSERT_EQ(v.stats().clients, 2);
+  Trajectory gt;
+  for (int i = 0; i < 20000; ++i) {
+    StampedPose p;
+    p.t = 1'000'000'000 + i * 5'000'000LL;
+    p.p_WR = Eigen::Vector3d(std::sin(0.001 * i), std::cos(0.0013 * i), 0.1 * std::sin(0.0007 * i));
+    gt.poses.push_back(p);
+  }
+  for (std::ptrdiff_t k = 2; k <= 10; ++k) {
+    v.set_ground_truth(gt);
+    ASSERT_TRUE(page.wait_for([&](const auto& ms) { return hellos(ms) >= k; }, 8s))
+        << "hello " << k << " did not come within 8 s: the viewer waited on the stalled page (10 s)";
+  }
+  v.push(frame(7));
+  EXPECT_TRUE(page.wait_for([](const auto& ms) {
+    return std::any_of(ms.begin(), ms.end(), [](const auto& m) {
+      return !m.binary && !is_hello(m) && m.as_json().value("type", "") == "frame" && m.as_json()["i"] == 7;
+    });
+  }, 8s)) << "no frame within 8 s";
+  EXPECT_EQ(v.stats().clients, 2) << "the stalled page is still connected";
 }
 
 TEST(Viewer, AWebSocketFromAnotherOriginIsRefused) {

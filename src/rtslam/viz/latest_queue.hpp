@@ -152,11 +152,17 @@ class LatestQueue {
   /// Consumer: try_pop(), else sleeps up to `timeout` (or until a wake()) and tries again.
   template <class Rep, class Period>
   std::optional<T> pop_for(std::chrono::duration<Rep, Period> timeout) {
-    const std::uint32_t seen = bell_.count();
+    return pop_for(timeout, wakes());
+  }
+  /// pop_for() that also returns at once if wake() was called since wakes() returned `seen` (read it before looking
+  /// for other work, so that a wake() in between is not missed).
+  template <class Rep, class Period>
+  std::optional<T> pop_for(std::chrono::duration<Rep, Period> timeout, std::uint32_t seen) {
     if (auto v = try_pop()) return v;
     bell_.wait(seen, std::chrono::duration_cast<std::chrono::nanoseconds>(timeout));
     return try_pop();
   }
+  std::uint32_t wakes() const { return bell_.count(); }
 
   /// Wakes the consumer in pop_for without an item (other work to do). Never blocks.
   void wake() { bell_.ring(); }

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -208,7 +209,8 @@ class Viewer::Impl {
     stopping_ = true;
     queue_.wake();
     if (worker_.joinable()) worker_.join();
-    // The worker no longer writes: close the connections (their close handlers run inside mg_stop).
+    // The worker hands nothing more to the pages' senders: close the connections (their close handlers, which stop
+    // the senders, run inside mg_stop; a sender's write in progress ends at CivetWeb's stop flag).
     if (ctx_ != nullptr) {
       // CivetWeb's listening thread polls its sockets in 2 s steps and looks at the stop flag between them: a
       // connection to our own port ends the step, so that mg_stop returns at once instead of up to 2 s later (every
@@ -292,10 +294,23 @@ class Viewer::Impl {
   }
 
  private:
+  // One WebSocket message for a page. Its bytes are shared: a frame's JSON and JPEG are made once for every page.
+  struct Outgoing {
+    int opcode = MG_WEBSOCKET_OPCODE_TEXT;
+    std::shared_ptr<const std::string> bytes;
+    bool ends_frame = false;  // the last message of a frame: counted in frames_sent once written
+  };
+
+  // A connected page. The viewer thread decides what the page lacks and hands it over as one batch; the page's own
+  // sender thread writes it. A page that stops reading blocks only its sender (until CivetWeb's write timeout,
+  // request_timeout_ms, fails the write and marks it dead), never the viewer thread nor the other pages. While a
+  // batch is being written the page is handed nothing new, and its next batch carries all it lacks by then (the
+  // history since, the newest frame): what waits for a slow page is bounded by one batch.
   struct Client {
     mg_connection* conn = nullptr;
     std::atomic<int> in_flight{0};      // frames sent and not yet acknowledged by the page
     std::atomic<bool> dead{false};      // a write failed
+    // The viewer thread's record of what the page has been handed.
     bool hello_sent = false;
     long meta_version = -1;
     std::size_t history_sent = 0;
@@ -303,13 +318,30 @@ class Viewer::Impl {
     int frame_sent = -1;                // index of the last frame sent
     bool finished_sent = false;
     Clock::time_point last_frame_time{};
+    // The sender: `batch` and the flags under `mu`.
+    std::mutex mu;
+    std::condition_variable cv;
+    std::vector<Outgoing> batch;        // handed over, not yet taken by the sender
+    bool writing = false;               // a batch is handed over or being written
+    std::atomic<bool> quit{false};      // looked at before each message too: a closing page waits for no batch
+    std::thread sender;
+
+    ~Client() { stop_sender(); }
+    void stop_sender() {
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        quit = true;
+      }
+      cv.notify_all();
+      if (sender.joinable()) sender.join();
+    }
   };
 
-  // The newest frame, ready to send: its JSON and the JPEG of its overlay.
+  // The newest frame, ready to send: its JSON and the JPEG of its overlay (empty without an image).
   struct Prepared {
     int index = -1;
-    std::string json;
-    std::vector<unsigned char> jpeg;
+    std::shared_ptr<const std::string> json;
+    std::shared_ptr<const std::string> jpeg;
   };
 
   static ViewerOptions validated(ViewerOptions o) {
@@ -501,19 +533,25 @@ class Viewer::Impl {
     auto* self = static_cast<Impl*>(cbdata);
     auto c = std::make_unique<Client>();
     c->conn = conn;
-    bool refused = false;
+    std::string refused;  // why, when the page is not added
     {
       std::lock_guard<std::mutex> lock(self->clients_mu_);
       if (self->clients_.size() >= static_cast<std::size_t>(kMaxClients)) {
-        refused = true;
+        refused = fmt::format("{} pages are connected already", kMaxClients);
       } else {
-        mg_set_user_connection_data(conn, c.get());
-        self->clients_.push_back(std::move(c));
-        self->clients_count_ = static_cast<int>(self->clients_.size());
+        try {  // nothing may unwind through CivetWeb's C frames
+          Client* added = c.get();
+          added->sender = std::thread([self, added] { self->send_loop(*added); });
+          self->clients_.push_back(std::move(c));
+          self->clients_count_ = static_cast<int>(self->clients_.size());
+          mg_set_user_connection_data(conn, added);
+        } catch (const std::exception& e) {
+          refused = e.what();
+        }
       }
     }
-    if (refused) {
-      logger("viz")->warn("viewer: WebSocket refused: {} pages are connected already", kMaxClients);
+    if (!refused.empty()) {
+      logger("viz")->warn("viewer: WebSocket refused: {}", refused);
       const char try_again_later[2] = {0x03, static_cast<char>(0xF5)};  // close status 1013, big-endian
       mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, try_again_later, sizeof try_again_later);
       return;
@@ -538,11 +576,49 @@ class Viewer::Impl {
     return 1;
   }
 
+  // CivetWeb's connection thread, once the page's connection has ended: the page leaves the list, then its sender
+  // is stopped (outside the clients' lock: a write in progress fails or ends first).
   static void ws_close(const mg_connection* conn, void* cbdata) {
     auto* self = static_cast<Impl*>(cbdata);
-    std::lock_guard<std::mutex> lock(self->clients_mu_);
-    self->clients_.remove_if([&](const std::unique_ptr<Client>& c) { return c->conn == conn; });
-    self->clients_count_ = static_cast<int>(self->clients_.size());
+    std::unique_ptr<Client> gone;
+    {
+      std::lock_guard<std::mutex> lock(self->clients_mu_);
+      const auto it = std::find_if(self->clients_.begin(), self->clients_.end(),
+                                   [&](const std::unique_ptr<Client>& c) { return c->conn == conn; });
+      if (it != self->clients_.end()) {
+        gone = std::move(*it);
+        self->clients_.erase(it);
+      }
+      self->clients_count_ = static_cast<int>(self->clients_.size());
+    }
+    if (gone) gone->stop_sender();
+  }
+
+  // A page's sender thread: writes each batch handed over, in order, and tells the viewer thread when it is done.
+  void send_loop(Client& c) {
+    if (opt_.lower_priority) lower_this_thread_priority();
+    std::vector<Outgoing> todo;
+    std::unique_lock<std::mutex> lock(c.mu);
+    for (;;) {
+      c.cv.wait(lock, [&] { return c.quit || !c.batch.empty(); });
+      if (c.quit) return;
+      todo.swap(c.batch);
+      lock.unlock();
+      for (const Outgoing& m : todo) {
+        if (c.dead || c.quit) break;
+        // The message's bytes written (the header's for an empty one); fewer after a timeout: the stream is cut.
+        const int n = mg_websocket_write(c.conn, m.opcode, m.bytes->data(), m.bytes->size());
+        if (n <= 0 || (!m.bytes->empty() && static_cast<std::size_t>(n) != m.bytes->size())) {
+          c.dead = true;
+          break;
+        }
+        if (m.ends_frame) ++frames_sent_;
+      }
+      todo.clear();
+      lock.lock();
+      c.writing = false;
+      queue_.wake();  // the viewer thread may have more for this page by now
+    }
   }
 
   json status_json() const {
@@ -561,8 +637,10 @@ class Viewer::Impl {
     if (opt_.lower_priority) lower_this_thread_priority();
     const auto frame_period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / opt_.max_fps));
     auto wait = std::chrono::milliseconds(100);
+    std::uint32_t wakes = queue_.wakes();
     while (!stopping_) {
-      std::optional<FrameReport> r = queue_.pop_for(wait);
+      std::optional<FrameReport> r = queue_.pop_for(wait, wakes);
+      wakes = queue_.wakes();  // a page's sender or ack ringing from here on ends the next wait at once
       if (stopping_) break;
       while (r) {
         latest_ = std::move(*r);
@@ -707,13 +785,15 @@ class Viewer::Impl {
     const FrameReport& r = *latest_;
     Prepared p;
     p.index = r.index;
+    std::vector<unsigned char> jpeg;
     if (!r.image.empty()) {
       cv::Mat img = draw_overlay(r, opt_.overlay);
       if (opt_.max_image_width > 0 && img.cols > opt_.max_image_width) {
         const double s = static_cast<double>(opt_.max_image_width) / img.cols;
         cv::resize(img, img, cv::Size(), s, s, cv::INTER_AREA);
       }
-      io::codecs::imencode(".jpg", img, p.jpeg, {cv::IMWRITE_JPEG_QUALITY, opt_.jpeg_quality});
+      io::codecs::imencode(".jpg", img, jpeg, {cv::IMWRITE_JPEG_QUALITY, opt_.jpeg_quality});
+      if (!jpeg.empty()) p.jpeg = std::make_shared<const std::string>(jpeg.begin(), jpeg.end());
     }
     json f = {{"type", "frame"},
               {"i", r.index},
@@ -724,8 +804,8 @@ class Viewer::Impl {
               {"landmarks", landmarks_json(r.landmarks, r.matches, 1)},
               {"n", {r.stats.visible, r.stats.searched, r.stats.matched, r.stats.ransac_inliers, r.stats.updated,
                      r.stats.initialized, static_cast<int>(r.landmarks.size())}},
-              {"image", p.jpeg.size()}};
-    p.json = dump_json(f);
+              {"image", jpeg.size()}};
+    p.json = std::make_shared<const std::string>(dump_json(f));
     prepared_ = std::move(p);
   }
 
@@ -763,29 +843,35 @@ class Viewer::Impl {
     return dump_json(f);
   }
 
-  bool write(Client& c, int opcode, const void* data, std::size_t size) {
-    if (c.dead) return false;
-    const int n = mg_websocket_write(c.conn, opcode, static_cast<const char*>(data), size);
-    if (n <= 0) c.dead = true;
-    return n > 0;
+  static Outgoing text(std::string s) {
+    return {MG_WEBSOCKET_OPCODE_TEXT, std::make_shared<const std::string>(std::move(s)), false};
   }
-  bool write_text(Client& c, const std::string& s) { return write(c, MG_WEBSOCKET_OPCODE_TEXT, s.data(), s.size()); }
 
-  // Sends every client what it lacks; returns how long the worker may sleep.
+  // Hands every page that is not busy what it lacks (its sender writes it); returns how long the worker may sleep.
   std::chrono::milliseconds sync_clients(Clock::duration frame_period) {
     std::lock_guard<std::mutex> lock(clients_mu_);
     if (clients_.empty()) return std::chrono::milliseconds(100);
     const auto now = Clock::now();
     // push() does not wake this thread (latest_queue.hpp): with browsers connected it polls at their frame rate.
     auto next_due = now + frame_period;
-    const bool rewritten = history_rewritten_;
-    history_rewritten_ = false;
+    if (history_rewritten_) {
+      for (auto& cp : clients_) cp->hello_sent = false;  // a page busy now gets its hello with its next batch
+      history_rewritten_ = false;
+    }
+    std::vector<Outgoing> out;
+    std::shared_ptr<const std::string> hello;  // made once for the pages that need it (the ground truth: megabytes)
     for (auto& cp : clients_) {
       Client& c = *cp;
       if (c.dead) continue;
-      if (!c.hello_sent || c.meta_version != meta_seen_ || rewritten) {
+      {
+        std::lock_guard<std::mutex> busy(c.mu);
+        if (c.writing) continue;  // its sender wakes this thread when done
+      }
+      out.clear();
+      if (!c.hello_sent || c.meta_version != meta_seen_) {
         // (Re)start: the page resets its state on hello.
-        if (!write_text(c, hello_json())) continue;
+        if (!hello) hello = std::make_shared<const std::string>(hello_json());
+        out.push_back({MG_WEBSOCKET_OPCODE_TEXT, hello, false});
         c.hello_sent = true;
         c.meta_version = meta_seen_;
         c.history_sent = 0;
@@ -793,7 +879,7 @@ class Viewer::Impl {
         c.frame_sent = -1;
         c.finished_sent = false;
         c.in_flight = 0;
-        if (recording_mode_ && !write_text(c, replay_map_json())) continue;
+        if (recording_mode_) out.push_back(text(replay_map_json()));
       }
       if (c.history_sent < history_json_.size()) {
         std::string m = R"({"type":"history","entries":[)";
@@ -802,11 +888,11 @@ class Viewer::Impl {
           m += history_json_[i];
         }
         m += "]}";
-        if (!write_text(c, m)) continue;
+        out.push_back(text(std::move(m)));
         c.history_sent = history_json_.size();
       }
       if (!align_json_.empty() && c.align_version != align_version_) {
-        if (!write_text(c, align_json_)) continue;
+        out.push_back(text(align_json_));
         c.align_version = align_version_;
       }
       if (!recording_mode_ && latest_ && c.frame_sent != latest_->index) {
@@ -817,22 +903,25 @@ class Viewer::Impl {
           next_due = std::min(next_due, due);
         } else {
           prepare_latest();
-          if (!write_text(c, prepared_->json)) continue;
-          if (!prepared_->jpeg.empty() &&
-              !write(c, MG_WEBSOCKET_OPCODE_BINARY, prepared_->jpeg.data(), prepared_->jpeg.size())) {
-            continue;
-          }
+          out.push_back({MG_WEBSOCKET_OPCODE_TEXT, prepared_->json, !prepared_->jpeg});
+          if (prepared_->jpeg) out.push_back({MG_WEBSOCKET_OPCODE_BINARY, prepared_->jpeg, true});
           c.frame_sent = latest_->index;
           c.last_frame_time = now;
           ++c.in_flight;
-          ++frames_sent_;
         }
       }
       if (finished_ && !c.finished_sent && (!latest_ || c.frame_sent == latest_->index || recording_mode_)) {
         const json s = {{"type", "status"}, {"finished", true}, {"pushed", queue_.pushed()}, {"dropped", queue_.dropped()}};
-        if (!write_text(c, dump_json(s))) continue;
+        out.push_back(text(dump_json(s)));
         c.finished_sent = true;
       }
+      if (out.empty()) continue;
+      {
+        std::lock_guard<std::mutex> hand(c.mu);
+        c.batch.swap(out);
+        c.writing = true;
+      }
+      c.cv.notify_one();
     }
     const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(next_due - now);
     return std::clamp(ms, std::chrono::milliseconds(1), std::chrono::milliseconds(100));

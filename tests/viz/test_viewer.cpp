@@ -359,11 +359,31 @@ class StalledPage {
     if (fd_ >= 0) ::close(fd_);
   }
   bool upgraded() const { return upgraded_; }
+  // Sends a text message as a client must (masked, RFC 6455 5.3), of at most 125 bytes.
+  bool send_text(const std::string& text) {
+    const unsigned char mask[4] = {0x12, 0x34, 0x56, 0x78};
+    std::string frame = {static_cast<char>(0x81), static_cast<char>(0x80 | text.size())};
+    frame.append(reinterpret_cast<const char*>(mask), 4);
+    for (std::size_t i = 0; i < text.size(); ++i) frame += static_cast<char>(text[i] ^ mask[i % 4]);
+    return ::send(fd_, frame.data(), frame.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(frame.size());
+  }
 
  private:
   int fd_ = -1;
   bool upgraded_ = false;
 };
+
+// 20000 poses: the hello that carries them is about 1.5 MB of JSON.
+Trajectory long_ground_truth() {
+  Trajectory gt;
+  for (int i = 0; i < 20000; ++i) {
+    StampedPose p;
+    p.t = 1'000'000'000 + i * 5'000'000LL;
+    p.p_WR = Eigen::Vector3d(std::sin(0.001 * i), std::cos(0.0013 * i), 0.1 * std::sin(0.0007 * i));
+    gt.poses.push_back(p);
+  }
+  return gt;
+}
 
 bool is_hello(const WsClient::Message& m) {  // without parsing: the ground truth makes hellos of megabytes
   constexpr std::string_view tail = R"("type":"hello"})";  // (nlohmann sorts the keys: "type" comes last)
@@ -387,13 +407,7 @@ TEST(Viewer, APageThatStopsReadingDelaysNoOtherPage) {
   const auto hellos = [](const auto& ms) { return std::count_if(ms.begin(), ms.end(), is_hello); };
   ASSERT_TRUE(page.wait_for([&](const auto& ms) { return hellos(ms) == 1; }));
   ASSERT_EQ(v.stats().clients, 2);
-  Trajectory gt;
-  for (int i = 0; i < 20000; ++i) {
-    StampedPose p;
-    p.t = 1'000'000'000 + i * 5'000'000LL;
-    p.p_WR = Eigen::Vector3d(std::sin(0.001 * i), std::cos(0.0013 * i), 0.1 * std::sin(0.0007 * i));
-    gt.poses.push_back(p);
-  }
+  const Trajectory gt = long_ground_truth();
   for (std::ptrdiff_t k = 2; k <= 10; ++k) {
     v.set_ground_truth(gt);
     ASSERT_TRUE(page.wait_for([&](const auto& ms) { return hellos(ms) >= k; }, 8s))
@@ -406,6 +420,42 @@ TEST(Viewer, APageThatStopsReadingDelaysNoOtherPage) {
     });
   }, 8s)) << "no frame within 8 s";
   EXPECT_EQ(v.stats().clients, 2) << "the stalled page is still connected";
+}
+
+// A page that took nothing for write_timeout_ms has its stream cut (counted); the page's next message (it pings every
+// 5 s) closes it, which frees its place: the page then reconnects and starts afresh, instead of showing a frozen run.
+TEST(Viewer, APageCutOffByAFailedWriteIsClosedAtItsNextMessage) {
+  ViewerOptions o = loopback();
+  o.lower_priority = false;
+  o.write_timeout_ms = 300;
+  Viewer v(o);
+  StalledPage stalled(v.port());
+  ASSERT_TRUE(stalled.upgraded());
+  for (int k = 0; k < 500 && v.stats().clients < 1; ++k) std::this_thread::sleep_for(10ms);
+  ASSERT_EQ(v.stats().clients, 1);
+  const Trajectory gt = long_ground_truth();
+  for (int k = 0; k < 100 && v.stats().pages_cut == 0; ++k) {  // hellos of 1.5 MB until a write fails
+    v.set_ground_truth(gt);
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(v.stats().pages_cut, 1);
+  EXPECT_EQ(v.stats().clients, 1) << "a page is closed only when it is heard from";
+  ASSERT_TRUE(stalled.send_text("ping"));
+  for (int k = 0; k < 1000 && v.stats().clients > 0; ++k) std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(v.stats().clients, 0) << "the cut page was not closed at its message";
+  WsClient again(v.port());
+  ASSERT_TRUE(again.connected()) << again.error();
+  EXPECT_TRUE(again.wait_for([](const auto& ms) { return std::count_if(ms.begin(), ms.end(), is_hello) == 1; }));
+  for (const int bad_ms : {99, 600001}) {
+    ViewerOptions bad = loopback();
+    bad.write_timeout_ms = bad_ms;
+    try {
+      bad.validate();
+      ADD_FAILURE() << "accepted write_timeout_ms = " << bad_ms;
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("write_timeout_ms = " + std::to_string(bad_ms)), std::string::npos);
+    }
+  }
 }
 
 TEST(Viewer, AWebSocketFromAnotherOriginIsRefused) {

@@ -54,6 +54,9 @@ void ViewerOptions::validate() const {
   }
   if (max_image_width < 0) throw ConfigError(fmt::format("viewer: max_image_width = {} must be >= 0", max_image_width));
   if (max_history < 100) throw ConfigError(fmt::format("viewer: max_history = {} must be >= 100", max_history));
+  if (write_timeout_ms < 100 || write_timeout_ms > 600000) {
+    throw ConfigError(fmt::format("viewer: write_timeout_ms = {} must be in [100, 600000]", write_timeout_ms));
+  }
   if (eval::parse_alignment(ground_truth_alignment) == eval::Alignment::None) {
     throw ConfigError("viewer: ground_truth_alignment = none: the ground truth must be drawn in the estimate's "
                       "frame (sim3, se3, posyaw or origin)");
@@ -290,6 +293,7 @@ class Viewer::Impl {
     s.frames_sent = frames_sent_.load();
     s.clients = clients_count_.load();
     s.history_dropped = history_ring_.dropped();
+    s.pages_cut = pages_cut_.load();
     return s;
   }
 
@@ -357,9 +361,10 @@ class Viewer::Impl {
     host_ = host;
     if (host_ == "0.0.0.0") logger("viz")->warn("viewer: listening on ALL interfaces (address {})", opt_.address);
     const std::string ports = fmt::format("{}:{}", host, port);
+    const std::string timeout = std::to_string(opt_.write_timeout_ms);
     const char* options[] = {"listening_ports", ports.c_str(),
                              "num_threads", "16",  // kMaxClients WebSockets hold one each
-                             "request_timeout_ms", "10000",
+                             "request_timeout_ms", timeout.c_str(),
                              "websocket_timeout_ms", "3600000",
                              "enable_keep_alive", "yes",
                              "enable_directory_listing", "no",
@@ -560,11 +565,14 @@ class Viewer::Impl {
   }
 
   // The page acknowledges each frame it has shown ("ack"); anything else is ignored. Runs on CivetWeb's thread:
-  // touches only the client's atomics.
+  // touches only the client's atomics. A page whose stream a failed write has cut (it stopped reading for
+  // `write_timeout_ms`) is closed at its next message (the page pings every 5 s): it reconnects and starts afresh
+  // instead of showing a frozen run while holding one of the pages' places.
   static int ws_data(mg_connection* conn, int bits, char* data, std::size_t len, void* cbdata) {
     auto* self = static_cast<Impl*>(cbdata);
     const int opcode = bits & 0x0f;
     if (opcode == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE) return 0;
+    if (const auto* c = static_cast<const Client*>(mg_get_user_connection_data(conn)); c != nullptr && c->dead) return 0;
     if (opcode == MG_WEBSOCKET_OPCODE_TEXT && len >= 3 && std::string_view(data, 3) == "ack") {
       if (auto* c = static_cast<Client*>(mg_get_user_connection_data(conn))) {
         int v = c->in_flight.load();
@@ -607,8 +615,18 @@ class Viewer::Impl {
       for (const Outgoing& m : todo) {
         if (c.dead || c.quit) break;
         // The message's bytes written (the header's for an empty one); fewer after a timeout: the stream is cut.
+        const auto t0 = Clock::now();
         const int n = mg_websocket_write(c.conn, m.opcode, m.bytes->data(), m.bytes->size());
         if (n <= 0 || (!m.bytes->empty() && static_cast<std::size_t>(n) != m.bytes->size())) {
+          if (!c.quit && !stopping_) {  // (not a page closing, nor the server stopping)
+            ++pages_cut_;
+            if (Clock::now() - t0 >= std::chrono::milliseconds(opt_.write_timeout_ms)) {
+              logger("viz")->warn("viewer: a page took no data for {} ms: cut off (it reconnects at its next message)",
+                                  opt_.write_timeout_ms);
+            } else {
+              logger("viz")->debug("viewer: a page's connection broke during a write");
+            }
+          }
           c.dead = true;
           break;
         }
@@ -628,7 +646,7 @@ class Viewer::Impl {
             {"processed", s.processed},                      {"frames_sent", s.frames_sent}, {"clients", s.clients},
             {"finished", finished_.load()},                   {"latest_frame", status_latest_frame_},
             {"latest_landmarks", status_latest_landmarks_},   {"history", status_history_},
-            {"history_thinned", status_history_thinned_}};
+            {"history_thinned", status_history_thinned_}, {"pages_cut", s.pages_cut}};
   }
 
   // ---- the viewer thread ---------------------------------------------------------------------------------------
@@ -973,6 +991,7 @@ class Viewer::Impl {
 
   std::atomic<long> processed_{0};
   std::atomic<long> frames_sent_{0};
+  std::atomic<long> pages_cut_{0};
   std::atomic<int> clients_count_{0};
 
   std::mutex clients_mu_;

@@ -44,6 +44,8 @@ struct ViewerOptions {
   bool lower_priority = true;           // the viewer thread runs at nice +10 (Linux)
   int max_history = 20000;              // per-frame records kept (a live run: the older half is thinned to every
                                         // other record whenever there are more, so memory stays bounded), >= 100
+  int write_timeout_ms = 10000;         // a page that takes no byte of a message for this long is cut off (it
+                                        // reconnects at its next ping); also an HTTP request's time, [100, 600000]
   OverlayOptions overlay;
   void validate() const;                // throws ConfigError naming the option, the value and the bound
 };
@@ -56,6 +58,8 @@ struct ViewerStats {
   long frames_sent = 0;  // frame messages sent (all browsers)
   int clients = 0;     // connected browsers
   long history_dropped = 0;  // per-frame records lost because the viewer thread was starved for 4096 frames
+  long pages_cut = 0;  // pages whose stream a failed write cut (write_timeout_ms or a broken connection), each
+                       // closed at its next message
 };
 
 class Viewer {

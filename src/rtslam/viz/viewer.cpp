@@ -572,7 +572,8 @@ class Viewer::Impl {
     auto* self = static_cast<Impl*>(cbdata);
     const int opcode = bits & 0x0f;
     if (opcode == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE) return 0;
-    if (const auto* c = static_cast<const Client*>(mg_get_user_connection_data(conn)); c != nullptr && c->dead) return 0;
+    const auto* page = static_cast<const Client*>(mg_get_user_connection_data(conn));
+    if (page != nullptr && page->dead) return 0;
     if (opcode == MG_WEBSOCKET_OPCODE_TEXT && len >= 3 && std::string_view(data, 3) == "ack") {
       if (auto* c = static_cast<Client*>(mg_get_user_connection_data(conn))) {
         int v = c->in_flight.load();

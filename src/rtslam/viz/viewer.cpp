@@ -572,15 +572,14 @@ class Viewer::Impl {
     auto* self = static_cast<Impl*>(cbdata);
     const int opcode = bits & 0x0f;
     if (opcode == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE) return 0;
-    const auto* page = static_cast<const Client*>(mg_get_user_connection_data(conn));
-    if (page != nullptr && page->dead) return 0;
+    auto* c = static_cast<Client*>(mg_get_user_connection_data(conn));
+    if (c == nullptr) return 1;
+    if (c->dead) return 0;
     if (opcode == MG_WEBSOCKET_OPCODE_TEXT && len >= 3 && std::string_view(data, 3) == "ack") {
-      if (auto* c = static_cast<Client*>(mg_get_user_connection_data(conn))) {
-        int v = c->in_flight.load();
-        while (v > 0 && !c->in_flight.compare_exchange_weak(v, v - 1)) {
-        }
-        if (v > 0 && v <= 2) self->queue_.wake();  // room for a frame again (a flood of acks wakes nothing)
+      int v = c->in_flight.load();
+      while (v > 0 && !c->in_flight.compare_exchange_weak(v, v - 1)) {
       }
+      if (v > 0 && v <= 2) self->queue_.wake();  // room for a frame again (a flood of acks wakes nothing)
     }
     return 1;
   }
